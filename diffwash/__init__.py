@@ -1,0 +1,26 @@
+"""diffwash: a differentiable watercolour renderer.
+
+Data flows one way: scene file -> `Scene` (mesh, camera, light, pigments,
+constants) -> visibility -> wash and unlit thicknesses -> Kubelka-Munk glazes ->
+colour -> image. Fitting wraps that pipeline; baking evaluates its tail on a
+grid of thicknesses; exporting writes the tail as a shader.
+
+The public API is what this module names.
+"""
+
+from . import colorimetry as colorimetry
+from . import km as km
+from . import pigments as pigments
+from . import shading as shading
+from . import swatches as swatches
+from ._camera import Camera as Camera
+from ._errors import DiffwashError as DiffwashError
+from ._errors import FailureError as FailureError
+from ._scene import Mesh as Mesh
+from ._scene import Scene as Scene
+from ._scene import load_mesh as load_mesh
+from ._scene import load_scene as load_scene
+from ._scene import save_scene as save_scene
+from ._version import __version__ as __version__
+from .pigments import Pigment as Pigment
+from .shading import Params as Params

@@ -1,0 +1,78 @@
+"""The `diffwash` command: a thin layer over the Python API.
+
+Each subcommand lives in its own module here with `NAME`, `HELP`,
+`add_arguments(parser)` and `run(args) -> int`; every one calls a public
+function of the library. Errors caused by the user's input print one line
+(`diffwash: error: FILE: FIELD: problem`) and exit with status 2; work that
+fails (a fit that does not converge) exits with 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from collections.abc import Sequence
+
+from .._errors import DiffwashError
+from .._version import __version__
+
+__all__ = ["main", "COMMANDS"]
+
+#: Subcommand modules, in the order `diffwash --help` lists them.
+COMMANDS = ("pigments", "swatches", "demo")
+
+
+def enable_compilation_cache() -> None:
+    """Keep JAX's compiled programs on disk so that later runs start fast.
+
+    The folder is `$DIFFWASH_CACHE_DIR` or `~/.cache/diffwash/jax`;
+    `DIFFWASH_CACHE_DIR=off` turns the cache off.
+    """
+    folder = os.environ.get("DIFFWASH_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "diffwash", "jax"))
+    if folder.lower() in ("", "off", "0", "none"):
+        return
+    import jax
+
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError:
+        return
+    jax.config.update("jax_compilation_cache_dir", folder)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="diffwash",
+        description="A differentiable watercolour renderer: Kubelka-Munk pigment glazes over paper, "
+        "fitted to photos and images, baked into a real-time lookup texture.",
+    )
+    parser.add_argument("--version", action="version", version=f"diffwash {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMANDS:
+        module = importlib.import_module(f".{name}", __name__)
+        p = sub.add_parser(module.NAME, help=module.HELP, description=module.__doc__)
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run, _uses_jax=getattr(module, "USES_JAX", True))
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    try:
+        if args._uses_jax:
+            enable_compilation_cache()
+        return int(args._run(args) or 0)
+    except DiffwashError as e:
+        print(f"diffwash: error: {e}", file=sys.stderr)
+        return e.exit_code
+    except KeyboardInterrupt:
+        print("diffwash: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0

@@ -1,0 +1,200 @@
+"""The pigment library: Kubelka-Munk coefficients of watercolour pigments.
+
+A pigment is its absorption `K` and scattering `S` per unit thickness for red,
+green and blue, plus the three properties Curtis et al. (1997) use for pigment
+transport (density, staining, granularity; kept for completeness, unused by the
+shading model).
+
+Pigment files are JSON, described by the JSON Schema `data/pigments/schema.json`
+shipped with the package: either one pigment object
+
+    {"name": "Quinacridone Rose", "K": [0.22, 1.47, 0.57], "S": [0.05, 0.003, 0.03],
+     "density": 0.02, "staining": 5.5, "granularity": 0.81}
+
+or a library `{"pigments": [pigment, ...]}`. `name`, `K` and `S` are required;
+`density`, `staining` and `granularity` default to 0.05, 1.0 and 0.5. Other keys
+are ignored (fitted pigments carry their diagnostics there).
+
+The default library is the seed's table of 12 pigments (Smedresman, after
+Curtis et al.), `data/pigments/seed.json`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import equinox as eqx
+import numpy as np
+
+from ._errors import DiffwashError
+from ._io import finite_number, read_json, write_json
+
+__all__ = ["Pigment", "load", "library", "names", "parse", "save", "DEFAULTS"]
+
+#: Values of the optional keys when a pigment file leaves them out.
+DEFAULTS = {"density": 0.05, "staining": 1.0, "granularity": 0.5}
+
+
+class Pigment(eqx.Module):
+    """A watercolour pigment: a pytree whose leaves are `K` and `S`.
+
+    **Fields:**
+
+    - `name`: the pigment's name.
+    - `K`: absorption per unit thickness, shape (3,) (red, green, blue), `>= 0`.
+    - `S`: scattering per unit thickness, shape (3,), `>= 0`.
+    - `density`, `staining`, `granularity`: Curtis et al.'s rho, omega, gamma.
+    """
+
+    K: Any
+    S: Any
+    name: str = eqx.field(static=True, default="pigment")
+    density: float = eqx.field(static=True, default=DEFAULTS["density"])
+    staining: float = eqx.field(static=True, default=DEFAULTS["staining"])
+    granularity: float = eqx.field(static=True, default=DEFAULTS["granularity"])
+
+    def to_dict(self) -> dict[str, Any]:
+        """The pigment as a JSON-ready dict in the library schema."""
+        return {
+            "name": self.name,
+            "K": [float(v) for v in np.asarray(self.K)],
+            "S": [float(v) for v in np.asarray(self.S)],
+            "density": self.density,
+            "staining": self.staining,
+            "granularity": self.granularity,
+        }
+
+
+def _default_library_path() -> Path:
+    return Path(str(resources.files("diffwash") / "data" / "pigments" / "seed.json"))
+
+
+def _key(name: str) -> str:
+    return " ".join(name.casefold().split())
+
+
+def _rgb(value: Any, file: Any, field: str) -> np.ndarray:
+    if not isinstance(value, list) or len(value) != 3:
+        got = f"{len(value)} values" if isinstance(value, list) else type(value).__name__
+        raise DiffwashError(f"must be a list of 3 numbers (red, green, blue), got {got}", file=file, field=field)
+    for v in value:
+        if not finite_number(v):
+            raise DiffwashError(f"must be finite numbers, got {v!r}", file=file, field=field)
+        if v < 0:
+            raise DiffwashError(f"must be >= 0, got {v!r}", file=file, field=field)
+    return np.asarray(value, np.float64)
+
+
+def parse(obj: Any, *, file: str | os.PathLike | None = None, where: str = "") -> Pigment:
+    """Validate one pigment object (a dict from JSON) and make a `Pigment`.
+
+    Errors name `file` and the field, e.g. `lib.json: pigments[2].K: must be >= 0`.
+    """
+    ctx = f"{where}." if where else ""
+    if not isinstance(obj, dict):
+        raise DiffwashError(f"a pigment must be a JSON object, got {type(obj).__name__}", file=file, field=where or None)
+    for key in ("name", "K", "S"):
+        if key not in obj:
+            raise DiffwashError("missing key", file=file, field=ctx + key)
+    name = obj["name"]
+    if not isinstance(name, str) or not name.strip():
+        raise DiffwashError("must be a non-empty string", file=file, field=ctx + "name")
+    K = _rgb(obj["K"], file, ctx + "K")
+    S = _rgb(obj["S"], file, ctx + "S")
+    extra = {}
+    for key, default in DEFAULTS.items():
+        v = obj.get(key, default)
+        if not finite_number(v) or v < 0:
+            raise DiffwashError(f"must be a finite number >= 0, got {v!r}", file=file, field=ctx + key)
+        extra[key] = float(v)
+    return Pigment(K=K, S=S, name=name.strip(), **extra)
+
+
+def _read_file(path: str | os.PathLike) -> list[Pigment]:
+    data = read_json(path)
+    if isinstance(data, dict) and "pigments" in data:
+        items = data["pigments"]
+        if not isinstance(items, list) or not items:
+            raise DiffwashError("must be a non-empty list of pigments", file=path, field="pigments")
+        return [parse(p, file=path, where=f"pigments[{i}]") for i, p in enumerate(items)]
+    return [parse(data, file=path)]
+
+
+def library(path: str | os.PathLike | None = None) -> dict[str, Pigment]:
+    """All pigments of a pigment file (default: the seed's 12), by name, in file order."""
+    pigments = _read_file(path if path is not None else _default_library_path())
+    return {p.name: p for p in pigments}
+
+
+def names() -> list[str]:
+    """Names of the default library's pigments."""
+    return list(library())
+
+
+def _find(pigments: dict[str, Pigment], name: str, file: Any) -> Pigment:
+    by_key = {_key(n): p for n, p in pigments.items()}
+    if _key(name) in by_key:
+        return by_key[_key(name)]
+    close = _close_names(_key(name), list(by_key))
+    hint = f"; did you mean {', '.join(repr(by_key[c].name) for c in close)}?" if close else ""
+    where = f"not in {file}" if file else "not in the pigment library"
+    raise DiffwashError(f"unknown pigment {name!r} ({where}){hint}")
+
+
+def _close_names(key: str, keys: list[str], n: int = 3) -> list[str]:
+    """Names like `key`, by the whole name or by one of its words ("rose")."""
+
+    def score(k: str) -> float:
+        whole = difflib.SequenceMatcher(None, key, k).ratio()
+        words = max(difflib.SequenceMatcher(None, key, w).ratio() for w in k.split())
+        return max(whole, words)
+
+    scored = sorted(((score(k), k) for k in keys), reverse=True)
+    return [k for s, k in scored[:n] if s >= 0.6]
+
+
+def _looks_like_path(s: str) -> bool:
+    return s.lower().endswith(".json") or os.sep in s or "/" in s
+
+
+def load(name_or_path: str | os.PathLike, name: str | None = None) -> Pigment:
+    """Load a pigment by name from the default library, or from a pigment file.
+
+    **Arguments:**
+
+    - `name_or_path`: a pigment name (matched case-insensitively, spaces
+      normalised, e.g. `"french ultramarine"`), or the path of a pigment file.
+    - `name`: with a file that holds several pigments, which one.
+
+    **Returns:**
+
+    The `Pigment`. Unknown names raise `DiffwashError` suggesting close names.
+    """
+    if isinstance(name_or_path, os.PathLike) or _looks_like_path(str(name_or_path)) or Path(name_or_path).is_file():
+        path = Path(name_or_path)
+        if not path.is_file():
+            raise DiffwashError("no such pigment file", file=path)
+        pigments = _read_file(path)
+        if name is not None:
+            return _find({p.name: p for p in pigments}, name, path)
+        if len(pigments) > 1:
+            listed = ", ".join(p.name for p in pigments)
+            raise DiffwashError(f"holds {len(pigments)} pigments ({listed}); say which by name", file=path)
+        return pigments[0]
+    return _find(library(), str(name_or_path) if name is None else name, None)
+
+
+def save(path: str | os.PathLike, pigments: Pigment | list[Pigment], **extra: Any) -> None:
+    """Write one pigment (an object) or several (a library) as JSON, atomically.
+
+    `extra` keys are added at the top level (e.g. fit diagnostics).
+    """
+    if isinstance(pigments, Pigment):
+        data = {**pigments.to_dict(), **extra}
+    else:
+        data = {"pigments": [p.to_dict() for p in pigments], **extra}
+    write_json(path, data)

@@ -1,0 +1,46 @@
+"""Tests run in float64 (the library's default is float32) with warnings as errors."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+os.environ.setdefault("DIFFWASH_CACHE_DIR", "off")
+
+import jax  # noqa: E402
+
+jax.config.update("jax_enable_x64", True)
+
+import hypothesis  # noqa: E402
+import pytest  # noqa: E402
+
+hypothesis.settings.register_profile("diffwash", deadline=None, max_examples=200, derandomize=True)
+hypothesis.settings.load_profile("diffwash")
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "data"
+
+
+@pytest.fixture
+def run_cli(tmp_path):
+    """Run the real `diffwash` entry point (`python -m diffwash`) in a subprocess.
+
+    Returns a function `(*args, cwd=tmp_path) -> CompletedProcess` with text output.
+    """
+
+    def run(*args, cwd=None, env=None, timeout=600):
+        e = dict(os.environ)
+        e["PYTHONPATH"] = str(ROOT) + os.pathsep + e.get("PYTHONPATH", "")
+        e.setdefault("DIFFWASH_CACHE_DIR", "off")
+        if env:
+            e.update(env)
+        return subprocess.run(
+            [sys.executable, "-m", "diffwash", *map(str, args)],
+            cwd=cwd or tmp_path,
+            env=e,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+
+    return run

@@ -203,23 +203,24 @@ def prepare(scene: Any, vis: Visibility) -> Visibility:
             "antialiasing needs a visibility prepared for it while the geometry is traced: "
             "pass visibility=diffwash.rasterize(scene, antialias=True)"
         )
-    vp = np.asarray(view_projection(scene.camera, scene.width / scene.height))
-    items = _silhouettes(
-        scene.mesh.vertices,
-        scene.mesh.faces,
-        vp,
-        np.asarray(vis.tri_id),
-        np.asarray(vis.depth),
-        scene.width,
-        scene.height,
-        None,
-    )
-    return eqx.tree_at(
-        lambda v: v.silhouettes,
-        vis,
-        Silhouettes(**{k: jax.device_put(x) for k, x in items.items()}),
-        is_leaf=lambda x: x is None,
-    )
+    with jax.ensure_compile_time_eval():
+        vp = np.asarray(view_projection(scene.camera, scene.width / scene.height))
+        items = _silhouettes(
+            scene.mesh.vertices,
+            scene.mesh.faces,
+            vp,
+            np.asarray(vis.tri_id),
+            np.asarray(vis.depth),
+            scene.width,
+            scene.height,
+            None,
+        )
+        return eqx.tree_at(
+            lambda v: v.silhouettes,
+            vis,
+            Silhouettes(**{k: jax.device_put(x) for k, x in items.items()}),
+            is_leaf=lambda x: x is None,
+        )
 
 
 def antialias(

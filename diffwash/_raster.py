@@ -215,44 +215,58 @@ def _make_jobs(box: np.ndarray, keep: np.ndarray) -> np.ndarray:
 # The fragment kernel: both z-buffer passes in one program.
 
 
-def _fragments(hv, faces, jobs, near, far, width, height):
-    """Evaluate each job's window: (pixel index or H*W, depth w, triangle) per fragment."""
+def _fragments(hv, sorted_faces, jobs, near, far, width, height):
+    """Evaluate each job's window: (pixel index or H*W, depth w, triangle) per fragment.
+
+    `sorted_faces` are the faces with their vertex indices in increasing order.
+    Every edge function is then computed from its two vertices in the same
+    order (lower index first) and with the origin at the pixel itself, so the
+    two triangles sharing an edge get exactly opposite values: a pixel centre
+    on a shared edge is never missed by both (no cracks). Orientation is not
+    needed here (culling is decided in `_setup`).
+    """
     tri, x0, y0, nx, area, first = (jobs[:, i] for i in range(6))
-    f = faces[tri]
-    v = [hv[f[:, i]] for i in range(3)]  # 3 x (n, 3): (X, Y, w) per vertex
-    # Shift the origin to the box's first pixel centre, for precision.
-    ox = (x0.astype(hv.dtype) + 0.5)
-    oy = (y0.astype(hv.dtype) + 0.5)
-    w = [vi[:, 2] for vi in v]
-    X = [vi[:, 0] - ox * wi for vi, wi in zip(v, w)]
-    Y = [vi[:, 1] - oy * wi for vi, wi in zip(v, w)]
-    # Edge i's homogeneous line: c_i = v_j x v_k; e_i(p) = c_i . (px, py, 1).
-    A, B, C = [], [], []
-    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-        A.append(Y[j] * w[k] - w[j] * Y[k])
-        B.append(w[j] * X[k] - X[j] * w[k])
-        C.append(X[j] * Y[k] - Y[j] * X[k])
-    det = C[0] * w[0] + C[1] * w[1] + C[2] * w[2]  # det[v0, v1, v2]
+    f = sorted_faces[tri]
+    v = [hv[f[:, i]] for i in range(3)]  # (X, Y, w) of the vertices, in increasing index order
+    X, Y, w = ([vi[:, c][:, None] for vi in v] for c in range(3))
+    # det[v0, v1, v2] with the origin at the box's first pixel centre (precision).
+    ox = x0.astype(hv.dtype)[:, None] + 0.5
+    oy = y0.astype(hv.dtype)[:, None] + 0.5
+    Xo = [Xi - ox * wi for Xi, wi in zip(X, w)]
+    Yo = [Yi - oy * wi for Yi, wi in zip(Y, w)]
+    det = (
+        w[0] * (Xo[1] * Yo[2] - Xo[2] * Yo[1])
+        + w[1] * (Xo[2] * Yo[0] - Xo[0] * Yo[2])
+        + w[2] * (Xo[0] * Yo[1] - Xo[1] * Yo[0])
+    )
     sgn = jnp.where(det > 0, 1.0, jnp.where(det < 0, -1.0, 0.0)).astype(hv.dtype)
     local = first[:, None] + jnp.arange(_WINDOW, dtype=jnp.int32)[None, :]
     du = jax.lax.rem(local, nx[:, None])
     dv = jax.lax.div(local, nx[:, None])
-    fu = du.astype(hv.dtype)
-    fv = dv.astype(hv.dtype)
-    e = [(A[i] * sgn)[:, None] * fu + (B[i] * sgn)[:, None] * fv + (C[i] * sgn)[:, None] for i in range(3)]
-    esum = e[0] + e[1] + e[2]
-    depth = jnp.abs(det)[:, None] / jnp.where(esum > 0, esum, 1)
     px = x0[:, None] + du
     py = y0[:, None] + dv
-    ok = (e[0] >= 0) & (e[1] >= 0) & (e[2] >= 0) & (esum > 0) & (depth >= near) & (depth <= far) & (local < area[:, None])
+    fx = px.astype(hv.dtype) + 0.5
+    fy = py.astype(hv.dtype) + 0.5
+    Xs = [Xi - fx * wi for Xi, wi in zip(X, w)]  # origin at the pixel centre
+    Ys = [Yi - fy * wi for Yi, wi in zip(Y, w)]
+
+    def edge(a, b):  # homogeneous edge function of the edge from vertex a to b (a < b by index)
+        return Xs[a] * Ys[b] - Xs[b] * Ys[a]
+
+    e0 = sgn * edge(1, 2)
+    e1 = -sgn * edge(0, 2)  # the edge from v2 to v0, computed as -(v0 to v2)
+    e2 = sgn * edge(0, 1)
+    esum = e0 + e1 + e2
+    depth = jnp.abs(det) / jnp.where(esum > 0, esum, 1)
+    ok = (e0 >= 0) & (e1 >= 0) & (e2 >= 0) & (esum > 0) & (depth >= near) & (depth <= far) & (local < area[:, None])
     pix = jnp.where(ok, py * width + px, width * height)
     return pix.reshape(-1), depth.reshape(-1), jnp.broadcast_to(tri[:, None], pix.shape).reshape(-1)
 
 
 @functools.partial(jax.jit, static_argnames=("width", "height"))
-def _zbuffer(vertices, faces, view_projection, jobs, near, far, *, width, height):
+def _zbuffer(vertices, sorted_faces, view_projection, jobs, near, far, *, width, height):
     hv = _pixel_homogeneous(clip_positions(vertices, view_projection), width, height)
-    pix, depth, tri = _fragments(hv, faces, jobs, near, far, width, height)
+    pix, depth, tri = _fragments(hv, sorted_faces, jobs, near, far, width, height)
     n = width * height
     zbuf = jnp.full(n, jnp.inf, hv.dtype).at[pix].min(depth, mode="drop")
     front = depth <= zbuf.at[pix].get(mode="fill", fill_value=-jnp.inf)
@@ -295,7 +309,8 @@ def rasterize_arrays(
     if cull_backfaces:
         keep &= facing > 0
     jobs = _make_jobs(box, keep)
-    tri_id, zbuf = _zbuffer(vertices, faces, vp, jax.device_put(jobs), near, far, width=width, height=height)
+    sorted_faces = jax.device_put(np.sort(faces_np, axis=1).astype(np.int32, copy=False))
+    tri_id, zbuf = _zbuffer(vertices, sorted_faces, vp, jax.device_put(jobs), near, far, width=width, height=height)
     return np.asarray(tri_id).reshape(height, width), np.asarray(zbuf).reshape(height, width)
 
 
@@ -311,40 +326,44 @@ def _covered(tri_id: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rasterize(scene: Any, *, antialias: bool = False) -> Visibility:
-    """Which triangle each pixel of `scene`'s image sees (host function, concrete scene).
+    """Which triangle each pixel of `scene`'s image sees (a host function).
 
     **Arguments:**
 
-    - `scene`: a `Scene` (its mesh, camera, size and back-face mode are used).
+    - `scene`: a `Scene` with concrete geometry and camera (its mesh, camera,
+      size and back-face mode are used). It may be called while tracing a
+      function that closes over the scene (e.g. inside a jitted loss): the
+      work is done there and then, on the concrete values.
     - `antialias`: also prepare the silhouette work items that
       `render(..., antialias=True)` needs.
 
     **Returns:**
 
-    A `Visibility`, reusable while geometry and camera stay fixed.
+    A `Visibility`, reusable while geometry, camera and size stay fixed.
     """
-    vp = np.asarray(view_projection(scene.camera, scene.width / scene.height), np.float64)
-    tri_id, depth = rasterize_arrays(
-        scene.mesh.vertices,
-        scene.mesh.faces,
-        vp,
-        float(scene.camera.near),
-        float(scene.camera.far),
-        scene.width,
-        scene.height,
-        scene.cull_backfaces,
-    )
-    pixels, pixel_tri = _covered(tri_id)
-    vis = Visibility(
-        tri_id=jax.device_put(tri_id),
-        depth=jax.device_put(depth),
-        pixels=jax.device_put(pixels),
-        pixel_tri=jax.device_put(pixel_tri),
-        width=scene.width,
-        height=scene.height,
-    )
-    if antialias:
-        from ._antialias import prepare
+    with jax.ensure_compile_time_eval():
+        vp = np.asarray(view_projection(scene.camera, scene.width / scene.height), np.float64)
+        tri_id, depth = rasterize_arrays(
+            scene.mesh.vertices,
+            scene.mesh.faces,
+            vp,
+            float(scene.camera.near),
+            float(scene.camera.far),
+            scene.width,
+            scene.height,
+            scene.cull_backfaces,
+        )
+        pixels, pixel_tri = _covered(tri_id)
+        vis = Visibility(
+            tri_id=jax.device_put(tri_id),
+            depth=jax.device_put(depth),
+            pixels=jax.device_put(pixels),
+            pixel_tri=jax.device_put(pixel_tri),
+            width=scene.width,
+            height=scene.height,
+        )
+        if antialias:
+            from ._antialias import prepare
 
-        vis = prepare(scene, vis)
-    return vis
+            vis = prepare(scene, vis)
+        return vis

@@ -41,7 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from ._barycentric import edge_functions, pixel_ndc
+from ._barycentric import corners, edge_functions, pixel_ndc
 from ._raster import Visibility, clip_positions, pad_size, rasterize_arrays, view_projection
 
 __all__ = ["Silhouettes", "opposite_vertices", "prepare", "antialias", "traced_visibility"]
@@ -133,25 +133,27 @@ def _analyse(vertices, faces, view_projection, opposite, tri_id, a, b, down, *, 
     b = jnp.where(valid, b, 0)
     clip = clip_positions(vertices, view_projection)
     tri = jnp.maximum(tri_id[a], 0)
-    v = clip[faces[tri]]  # (N, 3, 4)
+    v = corners(clip, faces, tri)
     xa, ya = pixel_ndc(a, width, height, clip.dtype)
     xb, yb = pixel_ndc(b, width, height, clip.dtype)
-    ea = edge_functions(v, xa, ya)
-    eb = edge_functions(v, xb, yb)
-    det = jnp.sum(ea * v[..., 3], axis=1)
+    ea = jnp.stack(edge_functions(v, xa, ya), axis=1)
+    eb = jnp.stack(edge_functions(v, xb, yb), axis=1)
+    w = jnp.stack([c[:, 3] for c in v], axis=1)
+    det = jnp.sum(ea * w, axis=1)
     s = jnp.sign(det)[:, None]
     leaves = s * eb < 0
     den = ea - eb
     t = jnp.where(leaves, ea / jnp.where(leaves, den, 1), jnp.inf)
     k = jnp.argmin(t, axis=1)
     tk = jnp.min(t, axis=1)
-    rows = jnp.arange(len(k))
     # Silhouette: no neighbour across edge k, or its far vertex lies on the same
     # side of the edge as our own vertex k (the neighbour faces the other way).
     o = opposite[tri, k]
     vo = clip[jnp.maximum(o, 0)]
-    vj = v[rows, (k + 1) % 3]
-    vk = v[rows, (k + 2) % 3]
+    V = jnp.stack(v, axis=1)  # (N, 3, 4); small N here
+    rows = jnp.arange(len(k))
+    vj = V[rows, (k + 1) % 3]
+    vk = V[rows, (k + 2) % 3]
     xyw = jnp.array([0, 1, 3])
     c = jnp.cross(vj[:, xyw], vk[:, xyw])  # edge k's homogeneous line (NDC)
     side = jnp.sum(c * vo[:, xyw], axis=1)
@@ -251,12 +253,13 @@ def antialias(
     valid = s.a < n
     a = jnp.where(valid, s.a, 0)
     b = jnp.where(valid, s.b, 0)
-    v = clip[faces[s.tri]]
+    v = corners(clip, faces, s.tri)
     xa, ya = pixel_ndc(a, width, height, clip.dtype)
     xb, yb = pixel_ndc(b, width, height, clip.dtype)
-    rows = jnp.arange(len(a))
-    ea = edge_functions(v, xa, ya)[rows, s.edge]
-    eb = edge_functions(v, xb, yb)[rows, s.edge]
+    ea_all = edge_functions(v, xa, ya)
+    eb_all = edge_functions(v, xb, yb)
+    ea = jnp.where(s.edge == 0, ea_all[0], jnp.where(s.edge == 1, ea_all[1], ea_all[2]))
+    eb = jnp.where(s.edge == 0, eb_all[0], jnp.where(s.edge == 1, eb_all[1], eb_all[2]))
     den = ea - eb
     ok = valid & (den != 0)
     t = jnp.clip(jnp.where(ok, ea / jnp.where(ok, den, 1), 0.5), 0, 1)

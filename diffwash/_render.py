@@ -133,30 +133,32 @@ def _canonical_params(params: shading.Params) -> shading.Params:
 
 
 def _shade(vertices, faces, normals, camera, params, vis, *, width, height, mode, both):
-    """Linear RGB of the covered pixels `vis.pixels`: (P, 3)."""
+    """Linear RGB of the covered pixels `vis.pixels`: (P, 3), and the clip-space vertices."""
     dtype = jnp.result_type(vertices, float)
     clip = clip_positions(vertices, camera.view_projection(width / height))
-    tri = vis.pixel_tri
-    bary, front = barycentrics(clip, faces, tri, vis.pixels, width, height)
     L = shading.safe_normalize(jnp.asarray(params.light, dtype))
     eye = jnp.asarray(camera.eye, dtype)
-    if mode == "per-pixel":
-        N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
-        if both:
-            N = jnp.where(front[:, None], N, -N)
-        P = interpolate(vertices, faces, tri, bary)
-        V = shading.safe_normalize(eye - P)
-        wash, unlit = shading.thicknesses(N, L, V[:, :], params)
-    else:
+    if mode == "per-vertex":
         V = shading.safe_normalize(eye - vertices)
-        wash_v, unlit_v = shading.thicknesses(normals, L, V, params)
-        wash = interpolate(wash_v, faces, tri, bary)
-        unlit = interpolate(unlit_v, faces, tri, bary)
-        if both:
-            wash_b, unlit_b = shading.thicknesses(-normals, L, V, params)
-            wash = jnp.where(front, wash, interpolate(wash_b, faces, tri, bary))
-            unlit = jnp.where(front, unlit, interpolate(unlit_b, faces, tri, bary))
-    return shading.glaze(params, wash, unlit), clip
+        thick_front = jnp.stack(shading.thicknesses(normals, L, V, params), axis=1)  # (V, 2)
+        thick_back = jnp.stack(shading.thicknesses(-normals, L, V, params), axis=1) if both else None
+
+    def shade(pixels, tri):
+        bary, front = barycentrics(clip, faces, tri, pixels, width, height)
+        if mode == "per-pixel":
+            N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
+            if both:
+                N = jnp.where(front[:, None], N, -N)
+            V = shading.safe_normalize(eye - interpolate(vertices, faces, tri, bary))
+            wash, unlit = shading.thicknesses(N, L, V, params)
+        else:
+            thick = interpolate(thick_front, faces, tri, bary)
+            if both:
+                thick = jnp.where(front[:, None], thick, interpolate(thick_back, faces, tri, bary))
+            wash, unlit = thick[:, 0], thick[:, 1]
+        return shading.glaze(params, wash, unlit)
+
+    return shade(vis.pixels, vis.pixel_tri), clip
 
 
 @functools.partial(jax.jit, static_argnames=("width", "height", "mode", "both", "antialias", "alpha"))

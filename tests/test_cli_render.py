@@ -37,8 +37,9 @@ def write_scene(folder, **changes):
 
 
 def read_png(path):
-    w, h, rows, info = png.Reader(filename=str(path)).asDirect()
-    return np.vstack([np.asarray(r) for r in rows]).reshape(h, w, info["planes"]), info
+    with open(path, "rb") as f:
+        w, h, rows, info = png.Reader(file=f).asDirect()
+        return np.vstack([np.asarray(r) for r in rows]).reshape(h, w, info["planes"]), info
 
 
 def test_render_writes_the_srgb_image(run_cli, tmp_path):

@@ -447,8 +447,9 @@ def _read_png(path: Path) -> tuple[np.ndarray, int]:
     if not path.is_file():
         raise DiffwashError("no such LUT image (named in the sidecar)", file=path)
     try:
-        w, h, rows, info = png.Reader(filename=str(path)).asDirect()
-        a = np.vstack([np.asarray(r, np.uint16) for r in rows]).reshape(h, w, info["planes"])
+        with open(path, "rb") as f:
+            w, h, rows, info = png.Reader(file=f).asDirect()
+            a = np.vstack([np.asarray(r, np.uint16) for r in rows]).reshape(h, w, info["planes"])
     except png.Error as e:
         raise DiffwashError(f"not a readable PNG: {e}", file=path) from None
     if info["planes"] != 3:

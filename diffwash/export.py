@@ -6,6 +6,8 @@
   `.npy` on request): the baked table and its sidecar (`diffwash.lut`);
 - `watercolour_per_vertex.vert/.frag`, `watercolour_per_pixel.vert/.frag`: the
   shaders for the chosen target (`diffwash._glsl`);
+- `watercolour.glsl`: the model's functions and uniforms without a `main`, to
+  include in an engine's own shaders;
 - `uniforms.json`: the scene's values of every uniform the shaders declare;
 - `mesh.glb`: the mesh with its normals (binary glTF, via trimesh);
 - `scene.json`: the scene, with explicit pigments, pointing at `mesh.glb`;
@@ -26,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from ._errors import DiffwashError
-from ._glsl import SHADING_MODES, TARGETS, shader_file_names, shader_sources, uniform_values
+from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
 from . import lut as _lut
 
 __all__ = ["export", "mesh_glb", "EXPORT_FILES"]
@@ -39,6 +41,7 @@ EXPORT_FILES = (
     "watercolour_per_vertex.frag",
     "watercolour_per_pixel.vert",
     "watercolour_per_pixel.frag",
+    "watercolour.glsl",
     "uniforms.json",
     "mesh.glb",
     "scene.json",
@@ -140,6 +143,10 @@ def export(
             for name, text in zip(shader_file_names(mode), (vert, frag)):
                 (tmp / name).write_text(text, encoding="utf-8")
                 written.append(tmp / name)
+        (tmp / "watercolour.glsl").write_text(
+            functions_source(target, colour=colour, lut_srgb=lut_srgb, output_srgb=True), encoding="utf-8"
+        )
+        written.append(tmp / "watercolour.glsl")
         uniforms = uniform_values(scene, params, lut=table)
         uniforms = {"//": "values of the shaders' uniforms for this scene; matrices are row-major (m[row][col])", **uniforms}
         (tmp / "uniforms.json").write_text(json.dumps(uniforms, indent=2) + "\n", encoding="utf-8")

@@ -11,7 +11,7 @@ from playwright.sync_api import sync_playwright
 
 import diffwash
 from diffwash import preview
-from diffwash.export import export
+from diffwash._export import export
 
 from conftest import DATA
 

@@ -25,7 +25,7 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     from .._scene import load_scene
-    from ..export import export
+    from .._export import export
     from .bake import parse_lut_size
 
     size = parse_lut_size(args.size)

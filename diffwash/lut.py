@@ -66,6 +66,11 @@ __all__ = [
     "bake",
     "save",
     "load",
+    "load_encoded",
+    "encoded",
+    "check_size",
+    "format_for",
+    "sidecar",
     "sidecar_path",
     "FORMATS",
     "KINDS",
@@ -457,6 +462,17 @@ def _read_png(path: Path) -> tuple[np.ndarray, int]:
     return a, info["bitdepth"]
 
 
+def load_encoded(table: Lut, fmt: str = "png16") -> Lut:
+    """`table` as it comes back from a `fmt` file: quantised to the file's encoding and decoded."""
+    if fmt not in FORMATS:
+        raise DiffwashError(f"must be one of {', '.join(FORMATS)}, got {fmt!r}", field="format")
+    if FORMATS[fmt][1] == "linear":
+        return table
+    top = 65535 if fmt == "png16" else 255
+    values = srgb_decode(encoded(table, fmt).astype(np.float64) / top).astype(np.float32)
+    return Lut(values=values, wash_max=table.wash_max, unlit_max=table.unlit_max, kind=table.kind, meta=table.meta)
+
+
 def load(path: str | os.PathLike) -> Lut:
     """Read a LUT written by `save` (or `diffwash bake`), through its sidecar.
 
@@ -530,5 +546,6 @@ def load(path: str | os.PathLike) -> Lut:
     )
 
 
-def _print_progress(fraction: float) -> None:  # pragma: no cover - cosmetic
+def print_progress(fraction: float) -> None:
+    """A `progress` callback for `bake` that prints a percentage on stderr."""
     print(f"\rbaking {100 * fraction:5.1f}%", end="" if fraction < 1 else "\n", file=sys.stderr, flush=True)

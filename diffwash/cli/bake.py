@@ -47,13 +47,16 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
+    import sys
+
     from .. import lut
     from .._scene import load_scene
 
     size = parse_lut_size(args.size)
     fmt = lut.format_for(args.output, args.format)
     scene = load_scene(args.scene)
-    table = lut.bake(scene, size, kind="rt" if args.rt else "colour")
+    large = size[0] * size[1] >= 2048 * 2048 and sys.stderr.isatty()
+    table = lut.bake(scene, size, kind="rt" if args.rt else "colour", progress=lut.print_progress if large else None)
     written = lut.save(args.output, table, fmt)
     n, m = table.size
     print(f"wrote {', '.join(str(w) for w in written)} ({n}x{m} {table.kind} LUT, {fmt}; wash_max {table.wash_max:g}, unlit_max {table.unlit_max:g})")

@@ -101,6 +101,8 @@ class Preview:
             self.program, [(self._vbo, "3f 3f", "position", "normal")], self._ibo
         )
         self.textures = []
+        import moderngl
+
         if colour != "km":
             # The LUT as its PNG stores it (sRGB-encoded), in float texels: filtering as on any GPU.
             encoded = srgb_encode(np.asarray(lut.values, np.float64)).astype(np.float32)
@@ -109,8 +111,6 @@ class Preview:
                 block = np.ascontiguousarray(encoded[..., 3 * unit : 3 * unit + 3])
                 tex = ctx.texture((block.shape[1], block.shape[0]), 3, block.tobytes(), dtype="f4")
                 tex.repeat_x = tex.repeat_y = False
-                import moderngl
-
                 tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
                 self.textures.append((unit, name, tex))
         self._fbo = None

@@ -151,6 +151,12 @@ def test_viewer_orbits_and_moves_the_light(page):
     assert psnr(page.canvas(), first) < 30
     light = page.page.evaluate("window.diffwashViewer.state.light")
     assert np.linalg.norm(light) == pytest.approx(1.0)
+    # The wheel zooms out.
+    before = page.frames()
+    page.page.mouse.move(cx, cy)
+    page.page.mouse.wheel(0, 300)
+    page.wait_frame(before)
+    assert np.linalg.norm(page.page.evaluate("window.diffwashViewer.state.eye")) > 3.5 * 1.2
     assert page.errors() == []
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ._errors import DiffwashError, FailureError
 from ._glsl import shader_sources, uniform_values
-from .lut import Lut, bake, srgb_encode
+from .lut import Lut, bake, load_encoded, srgb_encode
 
 __all__ = ["Preview", "create_context", "render", "show", "has_display", "can_show", "renderer_name"]
 
@@ -58,7 +58,8 @@ class Preview:
     - `ctx`: a moderngl context (see `create_context`).
     - `scene`: the `Scene`.
     - `params`: shading `Params` (default: the scene's).
-    - `lut`: a `Lut` (default: baked from `params`, 256^2); an `"rt"` LUT
+    - `lut`: a `Lut` (default: baked from `params` at 256^2 and quantised as the
+      default export's 16-bit PNG stores it); an `"rt"` LUT
       selects the R/T shaders.
     - `shading`: `"per-pixel"` or `"per-vertex"` (default: the scene's).
     - `colour`: `"lut"` (default; `"lut-rt"` for an R/T LUT) or `"km"`
@@ -84,7 +85,8 @@ class Preview:
         if colour is None:
             colour = "lut-rt" if (lut is not None and lut.kind == "rt") else "lut"
         if colour != "km" and lut is None:
-            lut = bake(self.params, 256, kind="rt" if colour == "lut-rt" else "colour")
+            # What `diffwash export` writes by default: 256^2, 16-bit sRGB PNG.
+            lut = load_encoded(bake(self.params, 256, kind="rt" if colour == "lut-rt" else "colour"), "png16")
         if colour != "km" and (lut.kind == "rt") != (colour == "lut-rt"):
             raise DiffwashError(f"a {lut.kind} LUT does not go with the {colour} shaders", field="lut")
         self.lut = lut

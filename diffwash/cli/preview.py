@@ -56,7 +56,8 @@ def run(args) -> int:
     if args.lut:
         table = _lut.load(args.lut)
     else:
-        table = _lut.bake(scene, parse_lut_size(args.lut_size, "--lut-size"), kind="rt" if args.rt else "colour")
+        # As `diffwash export` writes it by default: a 16-bit sRGB PNG.
+        table = _lut.load_encoded(_lut.bake(scene, parse_lut_size(args.lut_size, "--lut-size"), kind="rt" if args.rt else "colour"), "png16")
     if window:
         last = preview.show(scene, lut=table, frames=args.frames, keep_last=args.output is not None)
         if args.output and last is not None:

@@ -10,12 +10,18 @@ The public API is what this module names.
 
 from . import colorimetry as colorimetry
 from . import km as km
+from . import lut as lut
 from . import pigments as pigments
+from . import preview as preview
 from . import shading as shading
 from . import swatches as swatches
 from ._camera import Camera as Camera
 from ._errors import DiffwashError as DiffwashError
 from ._errors import FailureError as FailureError
+from ._export import export as export
+from ._glsl import functions_source as functions_source
+from ._glsl import shader_sources as shader_sources
+from ._glsl import uniform_values as uniform_values
 from ._raster import Visibility as Visibility
 from ._raster import rasterize as rasterize
 from ._render import render as render

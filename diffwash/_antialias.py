@@ -42,9 +42,9 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from ._barycentric import corners, edge_functions, pixel_ndc
-from ._raster import Visibility, clip_positions, pad_size, rasterize_arrays, view_projection
+from ._raster import Visibility, clip_positions, host_context, pad_size, rasterize_arrays, view_projection
 
-__all__ = ["Silhouettes", "opposite_vertices", "prepare", "antialias", "traced_visibility"]
+__all__ = ["Silhouettes", "edge_topology", "prepare", "antialias", "traced_visibility"]
 
 _EPS = 1.0 / 16  # tolerance on the crossing fraction (as nvdiffrast's)
 _topology_cache: collections.OrderedDict[tuple, np.ndarray] = collections.OrderedDict()
@@ -67,16 +67,16 @@ class Silhouettes(eqx.Module):
     edge: Int[Array, " N"]
 
 
-def opposite_vertices(faces: Any) -> np.ndarray:
-    """For each triangle edge, the far vertex of the triangle across it.
+def edge_topology(faces: Any) -> tuple[np.ndarray, np.ndarray]:
+    """For each triangle edge: the triangle across it and that triangle's far vertex.
 
     Edge `i` of triangle `t` joins `faces[t, (i + 1) % 3]` and
-    `faces[t, (i + 2) % 3]`. The answer is -1 for a boundary edge or one shared
-    by more than two triangles. Cached per `faces` content.
+    `faces[t, (i + 2) % 3]`. Both answers are -1 for a boundary edge or one
+    shared by more than two triangles. Cached per `faces` content.
 
     **Returns:**
 
-    (F, 3) int32.
+    `(neighbour, opposite)`, each (F, 3) int32.
     """
     from ._render import _array_key
 
@@ -92,18 +92,18 @@ def opposite_vertices(faces: Any) -> np.ndarray:
     order = np.argsort(keys, kind="stable")
     ks = keys[order]
     m = len(ks)
-    same_next = np.zeros(m, bool)
-    same_next[:-1] = ks[:-1] == ks[1:]
-    first_of_pair = same_next.copy()
+    first_of_pair = np.zeros(m, bool)
+    first_of_pair[:-1] = ks[:-1] == ks[1:]
     first_of_pair[1:] &= ks[1:] != ks[:-1]  # not the second of a run
     first_of_pair[: m - 2] &= ks[2:] != ks[: m - 2]  # not followed by a third
     i = np.flatnonzero(first_of_pair)
     e1, e2 = order[i], order[i + 1]  # flat edge ids (triangle * 3 + edge)
+    neighbour = np.full(3 * n_tri, -1, np.int64)
+    neighbour[e1], neighbour[e2] = e2 // 3, e1 // 3
     opposite = np.full(3 * n_tri, -1, np.int64)
     flat_faces = faces.reshape(-1)
-    opposite[e1] = flat_faces[e2]  # the vertex opposite edge e2 in its triangle is faces[t2, i2]
-    opposite[e2] = flat_faces[e1]
-    out = opposite.reshape(n_tri, 3).astype(np.int32)
+    opposite[e1], opposite[e2] = flat_faces[e2], flat_faces[e1]  # edge i's far vertex is faces[t, i]
+    out = (neighbour.reshape(n_tri, 3).astype(np.int32), opposite.reshape(n_tri, 3).astype(np.int32))
     _topology_cache[key] = out
     while len(_topology_cache) > 4:
         _topology_cache.popitem(last=False)
@@ -124,45 +124,63 @@ def _pairs(tri_id: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return np.where(p_front, p, q), np.where(p_front, q, p), down
 
 
+_WALK = 6  # triangles a pair's segment may cross before it reaches a silhouette edge
+
+
 @functools.partial(jax.jit, static_argnames=("width", "height"))
-def _analyse(vertices, faces, view_projection, opposite, tri_id, a, b, down, *, width, height):
-    """For candidate pairs: whether a silhouette edge of the occluder splits them, and which edge."""
+def _analyse(vertices, faces, view_projection, neighbour, opposite, tri_id, a, b, down, *, width, height):
+    """For candidate pairs: whether a silhouette edge splits them, which triangle and edge.
+
+    The segment from the occluder's pixel centre `a` to `b` is followed across
+    up to `_WALK` triangles of the same surface (small triangles: the first
+    edge crossed is often an interior one) until it crosses a silhouette edge
+    or ends.
+    """
     n = width * height
     valid = a < n
     a = jnp.where(valid, a, 0)
     b = jnp.where(valid, b, 0)
     clip = clip_positions(vertices, view_projection)
-    tri = jnp.maximum(tri_id[a], 0)
-    v = corners(clip, faces, tri)
     xa, ya = pixel_ndc(a, width, height, clip.dtype)
     xb, yb = pixel_ndc(b, width, height, clip.dtype)
-    ea = jnp.stack(edge_functions(v, xa, ya), axis=1)
-    eb = jnp.stack(edge_functions(v, xb, yb), axis=1)
-    w = jnp.stack([c[:, 3] for c in v], axis=1)
-    det = jnp.sum(ea * w, axis=1)
-    s = jnp.sign(det)[:, None]
-    leaves = s * eb < 0
-    den = ea - eb
-    t = jnp.where(leaves, ea / jnp.where(leaves, den, 1), jnp.inf)
-    k = jnp.argmin(t, axis=1)
-    tk = jnp.min(t, axis=1)
-    # Silhouette: no neighbour across edge k, or its far vertex lies on the same
-    # side of the edge as our own vertex k (the neighbour faces the other way).
-    o = opposite[tri, k]
-    vo = clip[jnp.maximum(o, 0)]
-    V = jnp.stack(v, axis=1)  # (N, 3, 4); small N here
-    rows = jnp.arange(len(k))
-    vj = V[rows, (k + 1) % 3]
-    vk = V[rows, (k + 2) % 3]
+    rows = jnp.arange(a.shape[0])
     xyw = jnp.array([0, 1, 3])
-    c = jnp.cross(vj[:, xyw], vk[:, xyw])  # edge k's homogeneous line (NDC)
-    side = jnp.sum(c * vo[:, xyw], axis=1)
-    silhouette = (o < 0) | (side * s[:, 0] > 0)
-    # Handle each edge in one direction: across horizontal pairs if it is steep.
-    steep = jnp.abs(c[:, 0]) / width >= jnp.abs(c[:, 1]) / height
-    across = jnp.where(down, ~steep, steep)
-    keep = valid & (tri_id[a] >= 0) & (s[:, 0] != 0) & jnp.isfinite(tk) & (tk > -_EPS) & (tk < 1 + _EPS)
-    return keep & silhouette & across, k.astype(jnp.int32), tri.astype(jnp.int32)
+    tri = jnp.maximum(tri_id[a], 0)
+    t_in = jnp.zeros(a.shape, clip.dtype)
+    done = ~valid | (tri_id[a] < 0)
+    found = jnp.zeros(a.shape, bool)
+    out_tri, out_k = tri, jnp.zeros(a.shape, jnp.int32)
+    for _ in range(_WALK):
+        v = corners(clip, faces, tri)
+        ea = jnp.stack(edge_functions(v, xa, ya), axis=1)
+        eb = jnp.stack(edge_functions(v, xb, yb), axis=1)
+        w = jnp.stack([c[:, 3] for c in v], axis=1)
+        s = jnp.sign(jnp.sum(ea * w, axis=1))[:, None]  # facing; (sum_i e_i w_i = det, at any point)
+        sa, sb = s * ea, s * eb
+        leaves = (sb < 0) & (sb < sa)  # the segment goes out through this edge
+        t = jnp.where(leaves, ea / jnp.where(leaves, ea - eb, 1), jnp.inf)
+        t = jnp.where(t >= t_in[:, None] - 1e-6, t, jnp.inf)
+        k = jnp.argmin(t, axis=1).astype(jnp.int32)
+        tk = t[rows, k]
+        # Silhouette: no neighbour across edge k, or the neighbour's far vertex
+        # lies on our side of the edge (the neighbour faces the other way).
+        o = opposite[tri, k]
+        V = jnp.stack(v, axis=1)
+        c = jnp.cross(V[rows, (k + 1) % 3][:, xyw], V[rows, (k + 2) % 3][:, xyw])  # edge k's line
+        side = jnp.sum(c * clip[jnp.maximum(o, 0)][:, xyw], axis=1)
+        silhouette = (o < 0) | (side * s[:, 0] > 0)
+        # Each edge is handled in one direction: across horizontal pairs if steep.
+        steep = jnp.abs(c[:, 0]) / width >= jnp.abs(c[:, 1]) / height
+        exits = jnp.isfinite(tk) & (tk > -_EPS) & (tk < 1 + _EPS) & (s[:, 0] != 0)
+        hit = ~done & exits & silhouette
+        found = found | (hit & jnp.where(down, ~steep, steep))
+        out_tri = jnp.where(hit, tri, out_tri)
+        out_k = jnp.where(hit, k, out_k)
+        nxt = neighbour[tri, k]
+        done = done | hit | ~exits | (nxt < 0)
+        tri = jnp.where(done, tri, jnp.maximum(nxt, 0))
+        t_in = jnp.where(done, t_in, tk)
+    return found, out_k, out_tri.astype(jnp.int32)
 
 
 def _silhouettes(vertices, faces, vp, tri_id: np.ndarray, depth: np.ndarray, width: int, height: int, size: int | None):
@@ -178,7 +196,7 @@ def _silhouettes(vertices, faces, vp, tri_id: np.ndarray, depth: np.ndarray, wid
         jax.device_put(np.asarray(vertices)),
         jax.device_put(np.asarray(faces).astype(np.int32, copy=False)),
         jax.device_put(np.asarray(vp)),
-        jax.device_put(opposite_vertices(faces)),
+        *(jax.device_put(x) for x in edge_topology(faces)),
         jax.device_put(tri_id.reshape(-1)),
         jax.device_put(pad(a, n, m)),
         jax.device_put(pad(b, n, m)),
@@ -205,7 +223,7 @@ def prepare(scene: Any, vis: Visibility) -> Visibility:
             "antialiasing needs a visibility prepared for it while the geometry is traced: "
             "pass visibility=diffwash.rasterize(scene, antialias=True)"
         )
-    with jax.ensure_compile_time_eval():
+    with host_context():
         vp = np.asarray(view_projection(scene.camera, scene.width / scene.height))
         items = _silhouettes(
             scene.mesh.vertices,
@@ -299,7 +317,7 @@ def traced_visibility(scene: Any, antialias: bool) -> Visibility:
     shapes = [jax.ShapeDtypeStruct((h, w), jnp.int32), jax.ShapeDtypeStruct((h, w), jnp.float32)]
     if antialias:
         shapes += [jax.ShapeDtypeStruct((2 * n,), jnp.int32)] * 4
-    out = jax.pure_callback(host, tuple(shapes), vertices, faces, vp, near, far)
+    out = jax.pure_callback(host, tuple(shapes), vertices, faces, vp, near, far, vmap_method="sequential")
     tri_id = out[0]
     flat = tri_id.reshape(-1)
     covered = flat >= 0

@@ -325,6 +325,23 @@ def _covered(tri_id: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return out_pix, out_tri
 
 
+def host_context() -> Any:
+    """A context in which JAX computations run now, even while an outer function is being traced.
+
+    The host work (rasterizing a concrete scene inside a jitted loss that
+    closes over it, say) must not be staged into the outer trace. JAX's
+    `eval_context` does exactly that; `ensure_compile_time_eval` (the public
+    fallback) also constant-folds while tracing the kernels, which compiles
+    many small programs.
+    """
+    try:
+        from jax._src.core import eval_context
+
+        return eval_context()
+    except ImportError:  # pragma: no cover - older or newer JAX
+        return jax.ensure_compile_time_eval()
+
+
 def rasterize(scene: Any, *, antialias: bool = False) -> Visibility:
     """Which triangle each pixel of `scene`'s image sees (a host function).
 
@@ -341,7 +358,7 @@ def rasterize(scene: Any, *, antialias: bool = False) -> Visibility:
 
     A `Visibility`, reusable while geometry, camera and size stay fixed.
     """
-    with jax.ensure_compile_time_eval():
+    with host_context():
         vp = np.asarray(view_projection(scene.camera, scene.width / scene.height), np.float64)
         tri_id, depth = rasterize_arrays(
             scene.mesh.vertices,

@@ -132,51 +132,47 @@ def _canonical_params(params: shading.Params) -> shading.Params:
     )
 
 
-def _shade(vertices, faces, normals, camera, params, vis, *, width, height, mode, both):
-    """Linear RGB of the covered pixels `vis.pixels`: (P, 3), and the clip-space vertices."""
+def _shade(vertices, faces, normals, camera, params, vis, both, *, width, height, mode):
+    """Linear RGB of the covered pixels `vis.pixels`: (P, 3), and the clip-space vertices.
+
+    `both` (a traced bool) says whether back faces are drawn; back-facing
+    triangles are then shaded with their normals reversed.
+    """
     dtype = jnp.result_type(vertices, float)
     clip = clip_positions(vertices, camera.view_projection(width / height))
     L = shading.safe_normalize(jnp.asarray(params.light, dtype))
     eye = jnp.asarray(camera.eye, dtype)
-    if mode == "per-vertex":
+    tri, pixels = vis.pixel_tri, vis.pixels
+    bary, front = barycentrics(clip, faces, tri, pixels, width, height)
+    flip = both & ~front  # a back face, drawn: turn its normal towards the eye
+    if mode == "per-pixel":
+        N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
+        N = jnp.where(flip[:, None], -N, N)
+        V = shading.safe_normalize(eye - interpolate(vertices, faces, tri, bary))
+        wash, unlit = shading.thicknesses(N, L, V, params)
+    else:
         V = shading.safe_normalize(eye - vertices)
-        thick_front = jnp.stack(shading.thicknesses(normals, L, V, params), axis=1)  # (V, 2)
-        thick_back = jnp.stack(shading.thicknesses(-normals, L, V, params), axis=1) if both else None
-
-    def shade(pixels, tri):
-        bary, front = barycentrics(clip, faces, tri, pixels, width, height)
-        if mode == "per-pixel":
-            N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
-            if both:
-                N = jnp.where(front[:, None], N, -N)
-            V = shading.safe_normalize(eye - interpolate(vertices, faces, tri, bary))
-            wash, unlit = shading.thicknesses(N, L, V, params)
-        else:
-            thick = interpolate(thick_front, faces, tri, bary)
-            if both:
-                thick = jnp.where(front[:, None], thick, interpolate(thick_back, faces, tri, bary))
-            wash, unlit = thick[:, 0], thick[:, 1]
-        return shading.glaze(params, wash, unlit)
-
-    return shade(vis.pixels, vis.pixel_tri), clip
+        front_v = jnp.stack(shading.thicknesses(normals, L, V, params), axis=1)  # (V, 2)
+        back_v = jnp.stack(shading.thicknesses(-normals, L, V, params), axis=1)
+        thick = jnp.where(flip[:, None], interpolate(back_v, faces, tri, bary), interpolate(front_v, faces, tri, bary))
+        wash, unlit = thick[:, 0], thick[:, 1]
+    return shading.glaze(params, wash, unlit), clip
 
 
-@functools.partial(jax.jit, static_argnames=("width", "height", "mode", "both", "antialias", "alpha"))
-def _render_kernel(vertices, faces, normals, camera, params, vis, *, width, height, mode, both, antialias, alpha):
-    rgb, clip = _shade(vertices, faces, normals, camera, params, vis, width=width, height=height, mode=mode, both=both)
+@functools.partial(jax.jit, static_argnames=("width", "height", "mode", "antialias"))
+def _render_kernel(vertices, faces, normals, camera, params, vis, both, *, width, height, mode, antialias):
+    """(H, W, 4): linear RGB and coverage."""
+    rgb, clip = _shade(vertices, faces, normals, camera, params, vis, both, width=width, height=height, mode=mode)
     n = width * height
     paper = jnp.broadcast_to(jnp.asarray(params.paper, rgb.dtype), (n, 3))
     image = paper.at[vis.pixels].set(rgb, mode="drop", unique_indices=True)
-    if alpha or antialias:
-        cover = jnp.zeros((n, 1), rgb.dtype).at[vis.pixels].set(1, mode="drop", unique_indices=True)
-        image = jnp.concatenate([image, cover], axis=1)
+    cover = jnp.zeros((n, 1), rgb.dtype).at[vis.pixels].set(1, mode="drop", unique_indices=True)
+    image = jnp.concatenate([image, cover], axis=1)
     if antialias:
         from ._antialias import antialias as _antialias
 
         image = _antialias(image, clip, faces, vis.silhouettes, width, height)
-    if not alpha and image.shape[1] == 4:
-        image = image[:, :3]
-    return image.reshape(height, width, image.shape[1])
+    return image.reshape(height, width, 4)
 
 
 def _render(scene, params, visibility, antialias, alpha):
@@ -184,20 +180,21 @@ def _render(scene, params, visibility, antialias, alpha):
         params = scene.params
     vis = _visibility(scene, visibility, antialias)
     mesh = scene.mesh
-    return _render_kernel(
+    rgba = _render_kernel(
         mesh.vertices,
         _int32(mesh.faces),
         mesh.normals,
         scene.camera,
         _canonical_params(params),
         vis,
+        np.bool_(not scene.cull_backfaces),
         width=scene.width,
         height=scene.height,
         mode=scene.shading,
-        both=not scene.cull_backfaces,
         antialias=bool(antialias),
-        alpha=alpha,
     )
+    # One compiled kernel serves both: the slice is free under jit, a small copy otherwise.
+    return rgba if alpha else rgba[..., :3]
 
 
 def render(

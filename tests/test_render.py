@@ -206,3 +206,12 @@ def test_back_faces_are_shaded_with_the_normal_towards_the_eye():
     params = dataclasses.replace(params, light=np.array([0.0, 0.0, -1.0]))
     back = look([0, 0, -3.0], n, faces)
     np.testing.assert_allclose(back[:, ::-1], front, atol=1e-12)
+
+
+def test_vmap_over_params():
+    scene = small_scene()
+    ks = jnp.array([0.5, 1.0, 2.0])
+    images = jax.vmap(lambda k: diffwash.render(scene, dataclasses.replace(scene.params, k_unlit=k)))(ks)
+    assert images.shape == (3, H, W, 3)
+    one = diffwash.render(scene, dataclasses.replace(scene.params, k_unlit=jnp.float64(2.0)))
+    np.testing.assert_allclose(np.asarray(images[2]), np.asarray(one), atol=1e-12)

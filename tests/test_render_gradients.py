@@ -91,16 +91,19 @@ def test_shading_parameter_gradients_match_finite_differences(shading):
 
 
 def test_every_leaf_of_params_has_a_gradient():
-    """jax.grad works through the `Params` pytree as it is (names and all), jacfwd too."""
+    """jax.grad works through the `Params` pytree as it is (names and all); jacfwd and jvp agree with it."""
     scene = small_scene()
     params = _as_arrays(scene.params)
-    grad = jax.grad(lambda p: jnp.sum(diffwash.render(scene, p)))(params)
+    grad = jax.jit(jax.grad(lambda p: jnp.sum(diffwash.render(scene, p))))(params)
     assert isinstance(grad, diffwash.Params) and grad.wash.name == params.wash.name
-    jac = jax.jacfwd(lambda k: diffwash.render(scene, _set(params, "k_unlit", k))[10:12, 15:17])(params.k_unlit)
-    assert jac.shape == (2, 2, 3)
-    _, jvp = jax.jvp(lambda k: jnp.sum(diffwash.render(scene, _set(params, "k_unlit", k))), (params.k_unlit,), (1.0,))
-    np.testing.assert_allclose(float(jnp.sum(jax.jacfwd(lambda k: diffwash.render(scene, _set(params, "k_unlit", k)))(
-        params.k_unlit))), float(jvp), rtol=1e-10)  # fmt: skip
+
+    def image(k):
+        return diffwash.render(scene, _set(params, "k_unlit", k))
+
+    jac = jax.jit(jax.jacfwd(image))(params.k_unlit)
+    assert jac.shape == (H, W, 3)
+    _, jvp = jax.jit(lambda k: jax.jvp(lambda x: jnp.sum(image(x)), (k,), (jnp.ones_like(k),)))(params.k_unlit)
+    np.testing.assert_allclose(float(jnp.sum(jac)), float(jvp), rtol=1e-10)
     np.testing.assert_allclose(float(grad.k_unlit), float(jvp), rtol=1e-10)
 
 
@@ -109,7 +112,7 @@ def _geometry_loss(scene, vis, weights):
         s = eqx.tree_at(lambda q: (q.mesh.vertices, q.camera.eye, q.camera.fov_y), scene, (vertices, eye, fov_y))
         return jnp.sum(diffwash.render_rgba(s, visibility=vis, antialias=True) * weights)
 
-    return jax.jit(loss)
+    return jax.jit(loss), jax.jit(jax.grad(loss, argnums=(0, 1, 2)))
 
 
 @pytest.mark.parametrize("shading", ["per-pixel", "per-vertex"])
@@ -118,11 +121,11 @@ def test_vertex_and_camera_gradients_match_finite_differences(shading):
     scene = small_scene(shading)
     vis = diffwash.rasterize(scene, antialias=True)
     assert int(jnp.sum(vis.silhouettes.a < W * H)) > 20  # silhouette work items exist
-    loss = _geometry_loss(scene, vis, _weights((H, W, 4)))
+    loss, grad = _geometry_loss(scene, vis, _weights((H, W, 4)))
     v0 = jnp.asarray(scene.mesh.vertices)
     e0 = jnp.asarray(scene.camera.eye)
     f0 = jnp.asarray(scene.camera.fov_y)
-    gv, ge, gf = jax.grad(loss, argnums=(0, 1, 2))(v0, e0, f0)
+    gv, ge, gf = grad(v0, e0, f0)
     rng = np.random.default_rng(2)
     dv = jnp.asarray(rng.normal(size=v0.shape))
     assert_close_rel(jnp.sum(gv * dv), central_difference(lambda v: loss(v, e0, f0), v0, dv, 1e-6))
@@ -132,16 +135,18 @@ def test_vertex_and_camera_gradients_match_finite_differences(shading):
 
 
 def test_antialiasing_adds_silhouette_gradients():
-    """Without antialiasing, coverage has no gradient: translating a flat quad changes nothing but shading."""
+    """Without antialiasing, coverage has no gradient: moving a flat quad sideways changes no alpha."""
     scene, vis = _quad_scene()
-    weights = _weights((32, 48, 4))
+    weights = _weights((32, 48))
 
-    def alpha_sum(dx, aa):
-        s = eqx.tree_at(lambda q: q.mesh.vertices, scene, scene.mesh.vertices + jnp.array([dx, 0.0, 0.0]))
-        return jnp.sum(diffwash.render_rgba(s, visibility=vis, antialias=aa)[..., 3] * weights[..., 3])
+    @functools.partial(jax.jit, static_argnums=1)
+    @functools.partial(jax.grad)
+    def alpha_grad(dx, aa):
+        s = eqx.tree_at(lambda q: q.mesh.vertices, scene, scene.mesh.vertices + jnp.stack([dx, 0.0, 0.0]))
+        return jnp.sum(diffwash.render_rgba(s, visibility=vis, antialias=aa)[..., 3] * weights)
 
-    assert float(jax.grad(alpha_sum)(0.0, False)) == 0.0
-    assert abs(float(jax.grad(alpha_sum)(0.0, True))) > 1.0
+    assert float(alpha_grad(jnp.float64(0), False)) == 0.0
+    assert abs(float(alpha_grad(jnp.float64(0), True))) > 1.0
 
 
 def _quad_scene(angle_deg=20.0, width=48, height=32):
@@ -170,41 +175,45 @@ def test_antialiased_coverage_and_its_gradient_follow_the_true_area(angle):
     scene, vis = _quad_scene(angle)
     v = np.asarray(scene.mesh.vertices)
 
+    @jax.jit
+    @jax.value_and_grad
     def alpha_sum(s):
         sc = eqx.tree_at(lambda q: q.mesh.vertices, scene, jnp.asarray(v) * s)
         return jnp.sum(diffwash.render_rgba(sc, visibility=vis, antialias=True)[..., 3])
 
     area = _projected_area(scene, v)
     point = float(jnp.sum(vis.tri_id >= 0))
-    aa = float(alpha_sum(1.0))
+    aa, g = (float(x) for x in alpha_sum(jnp.float64(1)))
     assert abs(aa - area) < 0.2 * max(abs(point - area), 1.0) + 1.0
     # Per pixel, closer to 8x8 supersampled coverage than point sampling is.
     big = dataclasses.replace(scene, width=scene.width * 8, height=scene.height * 8)
     cover = (np.asarray(diffwash.rasterize(big).tri_id) >= 0).reshape(scene.height, 8, scene.width, 8).mean((1, 3))
-    alpha = np.asarray(diffwash.render_rgba(scene, antialias=True)[..., 3])
+    alpha = np.asarray(diffwash.render_rgba(scene, visibility=vis, antialias=True)[..., 3])
     point_err = np.abs((np.asarray(vis.tri_id) >= 0) - cover).sum()
     assert np.abs(alpha - cover).sum() < 0.3 * point_err
     h = 1e-4
     d_area = (_projected_area(scene, v * (1 + h)) - _projected_area(scene, v * (1 - h))) / (2 * h)
-    np.testing.assert_allclose(float(jax.grad(alpha_sum)(1.0)), d_area, rtol=0.05)
+    np.testing.assert_allclose(g, d_area, rtol=0.02)
 
 
 def test_traced_geometry_without_a_visibility():
-    """Under jit/grad with traced vertices, visibility comes from a host callback; same image as concrete."""
+    """Under jit/grad with traced vertices, visibility comes from a host callback: same image, same gradient."""
     scene = small_scene()
     v0 = jnp.asarray(scene.mesh.vertices)
-
-    def image(v, aa):
-        return diffwash.render(eqx.tree_at(lambda q: q.mesh.vertices, scene, v), antialias=aa)
-
-    for aa in (False, True):
-        np.testing.assert_allclose(np.asarray(jax.jit(image, static_argnums=1)(v0, aa)),
-                                   np.asarray(diffwash.render(scene, antialias=aa)), atol=1e-12)  # fmt: skip
-    g = jax.grad(lambda v: jnp.sum(image(v, True)))(v0)
+    weights = _weights((H, W, 3))
     vis = diffwash.rasterize(scene, antialias=True)
-    g_ref = jax.grad(lambda v: jnp.sum(diffwash.render(eqx.tree_at(lambda q: q.mesh.vertices, scene, v),
-                                                      visibility=vis, antialias=True)))(v0)  # fmt: skip
-    np.testing.assert_allclose(np.asarray(g), np.asarray(g_ref), atol=1e-10)
+
+    def loss(v, vis):
+        image = diffwash.render(eqx.tree_at(lambda q: q.mesh.vertices, scene, v), visibility=vis, antialias=True)
+        return jnp.sum(image * weights), image
+
+    traced = jax.jit(jax.value_and_grad(lambda v: loss(v, None), has_aux=True))
+    given = jax.jit(jax.value_and_grad(lambda v: loss(v, vis), has_aux=True))
+    (_, img_t), g_t = traced(v0)
+    (_, img_g), g_g = given(v0)
+    np.testing.assert_allclose(np.asarray(img_t), np.asarray(img_g), atol=1e-12)
+    np.testing.assert_allclose(np.asarray(g_t), np.asarray(g_g), atol=1e-10)
+    assert float(jnp.max(jnp.abs(g_t))) > 0
 
 
 # ---------------------------------------------------------------------------
@@ -212,8 +221,9 @@ def test_traced_geometry_without_a_visibility():
 
 
 def _edge_cases(params):
-    zero_s = diffwash.Pigment(K=jnp.array([0.3, 1.2, 0.0]), S=jnp.array([0.0, 0.0, 0.0]))
-    zero_k = diffwash.Pigment(K=jnp.array([0.0, 0.0, 0.0]), S=jnp.array([0.5, 0.0, 0.2]))
+    # Same pigment names (static metadata): one compiled gradient serves every case.
+    zero_s = dataclasses.replace(params.wash, K=jnp.array([0.3, 1.2, 0.0]), S=jnp.array([0.0, 0.0, 0.0]))
+    zero_k = dataclasses.replace(params.unlit, K=jnp.array([0.0, 0.0, 0.0]), S=jnp.array([0.5, 0.0, 0.2]))
     return {
         "zero thickness": dataclasses.replace(params, k_wash=jnp.float64(0), k_unlit=jnp.float64(0)),
         "S = 0 and K = 0": dataclasses.replace(params, wash=zero_s, unlit=zero_k),
@@ -229,9 +239,9 @@ def _edge_cases(params):
 @pytest.mark.parametrize("case", list(_edge_cases(small_scene().params)))
 @pytest.mark.parametrize("shading", ["per-pixel", "per-vertex"])
 def test_finite_values_and_gradients_at_the_edges(case, shading):
-    scene, vis, grads = _edge_setup(shading)
+    scene, vis, image, grads = _edge_setup(shading)
     params = _as_arrays(_edge_cases(scene.params)[case])
-    img = diffwash.render_rgba(scene, params, visibility=vis, antialias=True)
+    img = image(params)
     assert bool(jnp.all(jnp.isfinite(img)))
     assert float(jnp.min(img)) >= -1e-12 and float(jnp.max(img)) <= 1 + 1e-12
     for g in jax.tree_util.tree_leaves(grads(params, jnp.asarray(scene.mesh.vertices))):
@@ -245,10 +255,11 @@ def _loss(scene, vis, params, vertices):
 
 @functools.cache
 def _edge_setup(shading):
-    """An open-mesh scene (back faces drawn), its visibility, and a compiled gradient in params and vertices."""
+    """An open-mesh scene (back faces drawn), its visibility, the compiled image and gradient (params, vertices)."""
     scene = small_scene(shading, "both")
     vis = diffwash.rasterize(scene, antialias=True)
-    return scene, vis, jax.jit(jax.grad(functools.partial(_loss, scene, vis), argnums=(0, 1)))
+    image = jax.jit(lambda p: diffwash.render_rgba(scene, p, visibility=vis, antialias=True))
+    return scene, vis, image, jax.jit(jax.grad(functools.partial(_loss, scene, vis), argnums=(0, 1)))
 
 
 def test_grazing_geometry_is_finite():
@@ -263,6 +274,6 @@ def test_grazing_geometry_is_finite():
                       backfaces="both")  # fmt: skip
         vis = diffwash.rasterize(scene, antialias=True)
         params = _as_arrays(scene.params)
-        assert bool(jnp.all(jnp.isfinite(diffwash.render_rgba(scene, params, visibility=vis, antialias=True))))
-        g = jax.grad(_loss, argnums=(2, 3))(scene, vis, params, jnp.asarray(v))
+        value, g = jax.jit(jax.value_and_grad(functools.partial(_loss, scene, vis), argnums=(0, 1)))(params, v)
+        assert np.isfinite(float(value)) and float(value) > 0
         assert all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree_util.tree_leaves(g))

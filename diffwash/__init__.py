@@ -24,6 +24,7 @@ from ._glsl import shader_sources as shader_sources
 from ._glsl import uniform_values as uniform_values
 from ._raster import Visibility as Visibility
 from ._raster import rasterize as rasterize
+from ._render import clear_visibility_cache as clear_visibility_cache
 from ._render import render as render
 from ._render import render_rgba as render_rgba
 from ._scene import Mesh as Mesh

@@ -6,20 +6,27 @@ interpolation, shading, antialiasing) consume. While geometry and camera stay
 fixed, a `Visibility` can be reused for any number of renders, e.g. while
 fitting materials.
 
-**How it works.** Triangles are transformed to clip space and set up once
-(screen bounding box, facing). On the host, the bounding boxes are sorted into
-buckets by the number of pixel centres they span: a triangle whose box spans
-`n` centres becomes a *job* evaluating a window of `K >= n` pixels (`K` a power
-of two, at most 1024; larger boxes are cut into 32 x 32 tiles). For each bucket
-one small jitted kernel evaluates all its windows at once with homogeneous
-(2DH) edge functions (Olano and Greer 1997), so that triangles crossing the
-near plane need no clipping: a fragment is kept where it lies inside all three
-edges and its eye depth `w` lies in `[near, far]`. A first scatter takes the
-minimum depth per pixel (`zbuf.at[pixel].min(w)`), a second the smallest
-triangle id among the fragments at that depth. Job counts are padded to powers
-of two so that few kernels are ever compiled. The work is linear in the summed
-bounding-box area of the visible triangles: no loop over pixels times
-triangles.
+**How it works.** Two jitted programs, with one small synchronisation between
+them. The *setup* transforms the vertices to clip space and finds each
+triangle's screen bounding box in pixel centres, dropping degenerate,
+off-screen, out-of-range and (where asked) back-facing triangles; it also
+counts the *jobs*: each box is scanned in row-major order, `_WINDOW` (8) pixel
+centres per job. The host reads that count (and fixes the boxes of the rare
+triangles that cross the near plane, with numpy), pads it to one of 8 sizes per
+octave (`pad_size`: few distinct shapes, few compilations), and runs the
+*z-buffer* program: it expands the boxes into jobs, evaluates every job's
+pixel centres at once with homogeneous (2DH) edge functions (Olano and Greer
+1997), so that triangles crossing the near plane need no clipping — a fragment
+is kept where it lies inside all three edges and its eye depth `w` lies in
+`[near, far]` — then scatters the minimum depth per pixel
+(`zbuf.at[pixel].min(w)`) and, second, the smallest triangle id among the
+fragments at that depth. The work is linear in the summed bounding-box area of
+the visible triangles: no loop over pixels times triangles.
+
+Each edge function is evaluated from its two vertices in increasing index
+order with the origin at the pixel centre, so that two triangles sharing an
+edge compute exactly opposite values there: a pixel centre on a shared edge is
+never missed by both (no cracks).
 
 **Conventions.** Pixel `(row, col)` has its centre at `(col + 0.5, row + 0.5)`
 pixels from the top-left corner; row 0 is the top. Clip space follows OpenGL
@@ -39,7 +46,6 @@ belong to the nearer one, or to the lower id at equal depth.
 from __future__ import annotations
 
 import functools
-import math
 from typing import Any
 
 import equinox as eqx
@@ -131,10 +137,14 @@ def _pixel_centre_range(lo: Any, hi: Any, size: int, xp: Any = jnp) -> tuple[Any
 
 
 @functools.partial(jax.jit, static_argnames=("width", "height"))
-def _setup(vertices, faces, view_projection, near, far, *, width, height):
-    """Per-triangle pixel-centre box (x0, x1, y0, y1), facing (+1 front, -1 back, 0 degenerate or
-    unknown) and whether the triangle crosses the near plane (then box and facing are left to
-    `_setup_crossing`)."""
+def _setup(vertices, faces, view_projection, near, far, cull, *, width, height):
+    """Per triangle: the box to scan, as (x0, y0, columns, pixel centres), and whether it crosses the near plane.
+
+    A triangle that is degenerate, off screen, beyond the clip range or culled
+    (`cull` and back-facing) scans nothing (0 pixel centres). Triangles crossing
+    the near plane are left to `_setup_crossing` (their rows here are meaningless).
+    Also returns the number of jobs (`sum ceil(centres / _WINDOW)`).
+    """
     hv = _pixel_homogeneous(clip_positions(vertices, view_projection), width, height)
     w = hv[:, 2]
     big = 4.0 * (width + height) + 64.0
@@ -147,17 +157,19 @@ def _setup(vertices, faces, view_projection, near, far, *, width, height):
     crossing = jnp.any(front_of_near, axis=1) & ~all_in
     x0, x1 = _pixel_centre_range(jnp.min(fx, axis=1), jnp.max(fx, axis=1), width)
     y0, y1 = _pixel_centre_range(jnp.min(fy, axis=1), jnp.max(fy, axis=1), height)
-    visible = all_in & jnp.any(fw <= far, axis=1) & (x0 <= x1) & (y0 <= y1)
-    box = jnp.stack([x0, x1, y0, y1], axis=1).astype(jnp.int32)
-    box = jnp.where(visible[:, None], box, jnp.array([0, -1, 0, -1], jnp.int32))
     # Signed area on screen; y points down, so counter-clockwise (front) is negative.
-    area = (fx[:, 1] - fx[:, 0]) * (fy[:, 2] - fy[:, 0]) - (fx[:, 2] - fx[:, 0]) * (fy[:, 1] - fy[:, 0])
-    facing = jnp.where(area < 0, 1, jnp.where(area > 0, -1, 0)).astype(jnp.int8)
-    return box, jnp.where(visible, facing, 0).astype(jnp.int8), crossing
+    area2 = (fx[:, 1] - fx[:, 0]) * (fy[:, 2] - fy[:, 0]) - (fx[:, 2] - fx[:, 0]) * (fy[:, 1] - fy[:, 0])
+    facing_ok = jnp.where(cull, area2 < 0, area2 != 0)
+    visible = all_in & jnp.any(fw <= far, axis=1) & (x0 <= x1) & (y0 <= y1) & facing_ok
+    nx = jnp.where(visible, x1 - x0 + 1, 1).astype(jnp.int32)
+    centres = jnp.where(visible, nx * (y1 - y0 + 1).astype(jnp.int32), 0)
+    info = jnp.stack([x0.astype(jnp.int32), y0.astype(jnp.int32), nx, centres], axis=1)
+    n_jobs = jnp.sum(jnp.where(crossing, 0, -(-centres // _WINDOW)))
+    return info, crossing, n_jobs
 
 
-def _setup_crossing(clip: np.ndarray, width: int, height: int, near: float, far: float) -> tuple[np.ndarray, np.ndarray]:
-    """Box and facing of triangles crossing the near plane (few; numpy, float64).
+def _setup_crossing(clip: np.ndarray, width: int, height: int, near: float, far: float, cull: bool) -> np.ndarray:
+    """`_setup`'s rows for triangles crossing the near plane (few; numpy, float64).
 
     The box is that of the part in front of the near plane: the vertices with
     `w >= near` and the points where the edges cross `w = near`.
@@ -177,57 +189,47 @@ def _setup_crossing(clip: np.ndarray, width: int, height: int, near: float, far:
     py = np.where(ok, pts[..., 1] / pw, np.nan)
     x0, x1 = _pixel_centre_range(np.nanmin(px, axis=1), np.nanmax(px, axis=1), width, np)
     y0, y1 = _pixel_centre_range(np.nanmin(py, axis=1), np.nanmax(py, axis=1), height, np)
-    visible = np.any(w <= far, axis=1) & (x0 <= x1) & (y0 <= y1)
-    box = np.stack([x0, x1, y0, y1], axis=1).astype(np.int32)
-    box[~visible] = [0, -1, 0, -1]
     # Facing from the homogeneous determinant (valid whatever the signs of w).
     det = np.einsum("ni,ni->n", hv[:, 0], np.cross(hv[:, 1], hv[:, 2]))
-    facing = np.where(visible, -np.sign(det), 0).astype(np.int8)
-    return box, facing
-
-
-def _make_jobs(box: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """Cut the kept triangles' bounding boxes into jobs of `_WINDOW` pixels.
-
-    A box of `nx` by `ny` pixel centres is scanned in row-major order, `_WINDOW`
-    centres per job.
-
-    **Returns:**
-
-    An (n, 6) int32 array of rows (triangle, x0, y0, nx, nx * ny, first), `n`
-    padded with empty jobs.
-    """
-    tri = np.flatnonzero(keep).astype(np.int32)
-    b = box[tri]
-    nx = b[:, 1] - b[:, 0] + 1
-    area = nx * (b[:, 3] - b[:, 2] + 1)
-    count = -(-area // _WINDOW)
-    owner = np.repeat(np.arange(len(tri), dtype=np.int32), count)
-    first = (np.arange(len(owner), dtype=np.int32) - np.repeat(np.cumsum(count, dtype=np.int32) - count, count)) * _WINDOW
-    n = pad_size(len(owner), _MIN_JOBS)
-    jobs = np.zeros((n, 6), np.int32)
-    jobs[:, 3] = 1  # padding: a 1-wide box of no pixels
-    jobs[: len(owner)] = np.stack([tri[owner], b[owner, 0], b[owner, 2], nx[owner], area[owner], first], axis=1)
-    return jobs
+    facing_ok = det < 0 if cull else det != 0
+    visible = np.any(w <= far, axis=1) & (x0 <= x1) & (y0 <= y1) & facing_ok
+    nx = np.where(visible, x1 - x0 + 1, 1)
+    centres = np.where(visible, nx * (y1 - y0 + 1), 0)
+    return np.stack([np.where(visible, x0, 0), np.where(visible, y0, 0), nx, centres], axis=1).astype(np.int32)
 
 
 # ---------------------------------------------------------------------------
 # The fragment kernel: both z-buffer passes in one program.
 
 
-def _fragments(hv, sorted_faces, jobs, near, far, width, height):
+def _jobs(info, n_jobs):
+    """Cut each triangle's box into jobs of `_WINDOW` pixel centres (row-major over the box).
+
+    **Returns:** `(triangle, first)` per job, (n_jobs,) each; jobs past the real
+    count repeat the last triangle with `first` past its box (they do nothing).
+    """
+    count = -(-info[:, 3] // _WINDOW)
+    start = jnp.cumsum(count) - count
+    tri = jnp.repeat(jnp.arange(info.shape[0], dtype=jnp.int32), count, total_repeat_length=n_jobs)
+    first = (jnp.arange(n_jobs, dtype=jnp.int32) - start[tri]) * _WINDOW
+    return tri, first
+
+
+def _fragments(hv, faces, info, tri, first, near, far, width, height):
     """Evaluate each job's window: (pixel index or H*W, depth w, triangle) per fragment.
 
-    `sorted_faces` are the faces with their vertex indices in increasing order.
-    Every edge function is then computed from its two vertices in the same
+    The job's vertices are taken in increasing index order. Every edge function is then computed from its two vertices in the same
     order (lower index first) and with the origin at the pixel itself, so the
     two triangles sharing an edge get exactly opposite values: a pixel centre
     on a shared edge is never missed by both (no cracks). Orientation is not
     needed here (culling is decided in `_setup`).
     """
-    tri, x0, y0, nx, area, first = (jobs[:, i] for i in range(6))
-    f = sorted_faces[tri]
-    v = [hv[f[:, i]] for i in range(3)]  # (X, Y, w) of the vertices, in increasing index order
+    x0, y0, nx, area = (info[tri, i] for i in range(4))
+    f = faces[tri]
+    lo = jnp.minimum(jnp.minimum(f[:, 0], f[:, 1]), f[:, 2])
+    hi = jnp.maximum(jnp.maximum(f[:, 0], f[:, 1]), f[:, 2])
+    mid = f[:, 0] + f[:, 1] + f[:, 2] - lo - hi
+    v = [hv[i] for i in (lo, mid, hi)]  # (X, Y, w) of the vertices, in increasing index order
     X, Y, w = ([vi[:, c][:, None] for vi in v] for c in range(3))
     # det[v0, v1, v2] with the origin at the box's first pixel centre (precision).
     ox = x0.astype(hv.dtype)[:, None] + 0.5
@@ -263,10 +265,11 @@ def _fragments(hv, sorted_faces, jobs, near, far, width, height):
     return pix.reshape(-1), depth.reshape(-1), jnp.broadcast_to(tri[:, None], pix.shape).reshape(-1)
 
 
-@functools.partial(jax.jit, static_argnames=("width", "height"))
-def _zbuffer(vertices, sorted_faces, view_projection, jobs, near, far, *, width, height):
+@functools.partial(jax.jit, static_argnames=("n_jobs", "width", "height"))
+def _zbuffer(vertices, faces, view_projection, info, near, far, *, n_jobs, width, height):
     hv = _pixel_homogeneous(clip_positions(vertices, view_projection), width, height)
-    pix, depth, tri = _fragments(hv, sorted_faces, jobs, near, far, width, height)
+    job_tri, first = _jobs(info, n_jobs)
+    pix, depth, tri = _fragments(hv, faces, info, job_tri, first, near, far, width, height)
     n = width * height
     zbuf = jnp.full(n, jnp.inf, hv.dtype).at[pix].min(depth, mode="drop")
     front = depth <= zbuf.at[pix].get(mode="fill", fill_value=-jnp.inf)
@@ -298,19 +301,20 @@ def rasterize_arrays(
     vp = jax.device_put(np.asarray(view_projection, np.float32))
     near = np.float32(near)
     far = np.float32(far)
-    box, facing, crossing = _setup(vertices, faces, vp, near, far, width=width, height=height)
-    box, facing, crossing = np.array(box), np.array(facing), np.asarray(crossing)
+    info, crossing, n_jobs = _setup(vertices, faces, vp, near, far, np.bool_(cull_backfaces), width=width, height=height)
+    crossing = np.asarray(crossing)
+    n_jobs = int(n_jobs)
     if crossing.any():
         idx = np.flatnonzero(crossing)
         vp64 = np.asarray(view_projection, np.float64)
         clip = vertices_np.astype(np.float64)[faces_np[idx]] @ vp64[:, :3].T + vp64[:, 3]
-        box[idx], facing[idx] = _setup_crossing(clip, width, height, float(near), float(far))
-    keep = (box[:, 1] >= box[:, 0]) & (box[:, 3] >= box[:, 2]) & (facing != 0)
-    if cull_backfaces:
-        keep &= facing > 0
-    jobs = _make_jobs(box, keep)
-    sorted_faces = jax.device_put(np.sort(faces_np, axis=1).astype(np.int32, copy=False))
-    tri_id, zbuf = _zbuffer(vertices, sorted_faces, vp, jax.device_put(jobs), near, far, width=width, height=height)
+        rows = _setup_crossing(clip, width, height, float(near), float(far), cull_backfaces)
+        info = np.array(info)
+        info[idx] = rows
+        n_jobs += int(np.sum(-(-rows[:, 3] // _WINDOW)))
+        info = jax.device_put(info)
+    tri_id, zbuf = _zbuffer(vertices, faces, vp, info, near, far, n_jobs=pad_size(n_jobs, _MIN_JOBS), width=width,
+                            height=height)  # fmt: skip
     return np.asarray(tri_id).reshape(height, width), np.asarray(zbuf).reshape(height, width)
 
 

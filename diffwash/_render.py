@@ -32,7 +32,6 @@ import functools
 import zlib
 from typing import Any
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -64,14 +63,14 @@ def _array_key(a: Any) -> tuple:
     return (a.shape, a.dtype.str, zlib.crc32(a.view(np.uint8).reshape(-1)))
 
 
-def _scene_key(scene: Any, antialias: bool) -> tuple:
+def _scene_key(scene: Any) -> tuple:
+    """What visibility depends on: size, back-face mode, vertex and face contents, camera."""
     cam = scene.camera
     camera = tuple(np.asarray(getattr(cam, f), np.float64).tobytes() for f in ("eye", "target", "up", "fov_y", "near", "far"))
     return (
         scene.width,
         scene.height,
         scene.cull_backfaces,
-        antialias,
         _array_key(scene.mesh.vertices),
         _array_key(scene.mesh.faces),
         camera,
@@ -99,15 +98,18 @@ def _visibility(scene: Any, visibility: Visibility | None, antialias: bool) -> V
         from ._antialias import traced_visibility
 
         return traced_visibility(scene, antialias)
-    key = _scene_key(scene, antialias)
+    key = _scene_key(scene)
     vis = _cache.get(key)
     if vis is None:
         vis = rasterize(scene, antialias=antialias)
-        _cache[key] = vis
-        while len(_cache) > _CACHE_SIZE:
-            _cache.popitem(last=False)
-    else:
-        _cache.move_to_end(key)
+    elif antialias and vis.silhouettes is None:
+        from ._antialias import prepare
+
+        vis = prepare(scene, vis)
+    _cache[key] = vis
+    _cache.move_to_end(key)
+    while len(_cache) > _CACHE_SIZE:
+        _cache.popitem(last=False)
     return vis
 
 

@@ -6,12 +6,13 @@ import dataclasses
 import functools
 
 import hypothesis
+import jax
 import hypothesis.strategies as st
 import numpy as np
 import pytest
 
 import diffwash
-from diffwash._raster import _make_jobs, pad_size, rasterize_arrays
+from diffwash._raster import _jobs, pad_size, rasterize_arrays
 from diffwash._scene import Mesh, Scene
 
 N_TRI = 10  # fixed triangle count: the kernels compile once for all examples
@@ -179,23 +180,21 @@ def test_pad_size(n):
 
 
 def test_jobs_cover_each_box_exactly_once():
-    rng = np.random.default_rng(3)
-    x0 = rng.integers(0, 50, 40)
-    y0 = rng.integers(0, 50, 40)
-    box = np.stack([x0, x0 + rng.integers(0, 40, 40), y0, y0 + rng.integers(0, 40, 40)], 1).astype(np.int32)
-    keep = rng.random(40) < 0.8
-    jobs = _make_jobs(box, keep)
-    seen: dict[int, list] = {}
     from diffwash._raster import _WINDOW
 
-    for tri, bx, by, nx, area, first in jobs:
-        for k in range(first, min(first + _WINDOW, area)):
-            seen.setdefault(int(tri), []).append((bx + k % nx, by + k // nx))
-    assert set(seen) == set(np.flatnonzero(keep).tolist())
-    for t, pix in seen.items():
-        xs, ys = np.arange(box[t, 0], box[t, 1] + 1), np.arange(box[t, 2], box[t, 3] + 1)
-        expect = {(x, y) for y in ys for x in xs}
-        assert len(pix) == len(expect) and set(pix) == expect
+    rng = np.random.default_rng(3)
+    nx = rng.integers(1, 40, 40)
+    centres = np.where(rng.random(40) < 0.8, nx * rng.integers(1, 40, 40), 0)
+    info = np.stack([rng.integers(0, 50, 40), rng.integers(0, 50, 40), nx, centres], 1).astype(np.int32)
+    n_jobs = int(np.sum(-(-centres // _WINDOW)))
+    tri, first = (np.asarray(x) for x in _jobs(jax.device_put(info), pad_size(n_jobs)))
+    seen: dict[int, list] = {}
+    for t, f in zip(tri, first):
+        for k in range(f, min(f + _WINDOW, info[t, 3])):
+            seen.setdefault(int(t), []).append(k)
+    assert set(seen) == set(np.flatnonzero(centres).tolist())
+    for t, ks in seen.items():
+        assert sorted(ks) == list(range(info[t, 3]))  # every pixel centre of the box once
 
 
 def test_rasterize_arrays_matches_rasterize():

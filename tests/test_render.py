@@ -215,3 +215,15 @@ def test_vmap_over_params():
     assert images.shape == (3, H, W, 3)
     one = diffwash.render(scene, dataclasses.replace(scene.params, k_unlit=jnp.float64(2.0)))
     np.testing.assert_allclose(np.asarray(images[2]), np.asarray(one), atol=1e-12)
+
+
+def test_antialiasing_reuses_the_cached_visibility():
+    clear_visibility_cache()
+    scene = small_scene()
+    diffwash.render(scene)
+    vis = next(iter(_cache.values()))
+    assert vis.silhouettes is None
+    diffwash.render(scene, antialias=True)
+    assert len(_cache) == 1
+    with_aa = next(iter(_cache.values()))
+    assert with_aa.silhouettes is not None and with_aa.tri_id is vis.tri_id  # prepared, not rasterized again

@@ -6,15 +6,17 @@ gives it one. For each pair of horizontally or vertically adjacent pixels that
 see different triangles (or a triangle and the background):
 
 1. the *occluder* is the pixel whose surface is nearer (never the background);
-2. the segment between the two pixel centres leaves the occluder's triangle
-   through one edge, at the fraction `t` of the way (from the homogeneous edge
-   function, exactly linear on screen);
-3. if that edge is a *silhouette* edge (a boundary edge, or one whose
-   neighbouring triangle faces the other way) and runs more across the pair's
-   direction than along it (so that each edge is handled in one direction
-   only), the pixel on whose side the crossing lies is blended with its
-   neighbour: with `alpha = 1/2 - t` and colours `c_a` (occluder) and `c_b`,
-   `c_a += alpha (c_b - c_a)` if `alpha > 0`, else `c_b += alpha (c_b - c_a)`.
+2. the segment between the two pixel centres is followed from the occluder's
+   triangle across its neighbours (up to `_WALK` triangles: with small
+   triangles the first edge crossed is often an interior one, where nvdiffrast
+   stops) until it crosses a *silhouette* edge — a boundary edge, or one whose
+   neighbouring triangle faces the other way — at the fraction `t` of the way
+   (from the homogeneous edge function, exactly linear on screen);
+3. if that edge runs more across the pair's direction than along it (so that
+   each edge is handled in one direction only), the pixel on whose side the
+   crossing lies is blended with its neighbour: with `alpha = 1/2 - t` and
+   colours `c_a` (occluder) and `c_b`, `c_a += alpha (c_b - c_a)` if
+   `alpha > 0`, else `c_b += alpha (c_b - c_a)`.
 
 That is the 1D coverage of the pixel by the occluder along the pair's
 direction, and `t` is a smooth function of the clip-space vertices.

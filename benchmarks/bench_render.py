@@ -143,15 +143,10 @@ def worker_raster_table(args) -> dict:
 
 def _gl_setup(scene):
     """A moderngl (EGL, llvmpipe) context drawing the scene with the tests' independent GLSL model."""
-    import moderngl
-
     sys.path.insert(0, str(ROOT / "tests"))
-    import test_render_opengl as ref  # the OpenGL reference of the tests: camera, model, draw
+    import gl_reference as ref  # the tests' OpenGL reference: camera, model, draw (imports no conftest)
 
-    ctx = moderngl.create_context(standalone=True, backend="egl")
-    prog = ctx.program(
-        vertex_shader=ref.moderngl_source(ref.VERTEX_SHADER), fragment_shader=ref.moderngl_source(ref.FRAGMENT_SHADER)
-    )
+    ctx, prog = ref.create()
     return ctx, prog, ref
 
 

@@ -9,13 +9,12 @@ fitting materials.
 **How it works.** Two jitted programs, with one small synchronisation between
 them. The *setup* transforms the vertices to clip space and finds each
 triangle's screen bounding box in pixel centres, dropping degenerate,
-off-screen, out-of-range and (where asked) back-facing triangles; it also
-counts the *jobs*: each box is scanned in row-major order, `_WINDOW` (8) pixel
-centres per job. The host reads that count (and fixes the boxes of the rare
-triangles that cross the near plane, with numpy), pads it to one of 8 sizes per
-octave (`pad_size`: few distinct shapes, few compilations), and runs the
-*z-buffer* program: it expands the boxes into jobs, evaluates every job's
-pixel centres at once with homogeneous (2DH) edge functions (Olano and Greer
+off-screen, out-of-range and (where asked) back-facing triangles. Each box is
+scanned in *jobs* of `_WINDOW` (8) pixel centres, row-major: the host fixes the
+boxes of the rare triangles that cross the near plane (numpy), lists the jobs
+(`np.repeat`), pads their count to one of 8 sizes per octave (`pad_size`: few
+distinct shapes, few compilations), and runs the *z-buffer* program. It
+evaluates every job's pixel centres at once with homogeneous (2DH) edge functions (Olano and Greer
 1997), so that triangles crossing the near plane need no clipping — a fragment
 is kept where it lies inside all three edges and its eye depth `w` lies in
 `[near, far]` — then scatters the minimum depth per pixel
@@ -142,8 +141,7 @@ def _setup(vertices, faces, view_projection, near, far, cull, *, width, height):
 
     A triangle that is degenerate, off screen, beyond the clip range or culled
     (`cull` and back-facing) scans nothing (0 pixel centres). Triangles crossing
-    the near plane are left to `_setup_crossing` (their rows here are meaningless).
-    Also returns the number of jobs (`sum ceil(centres / _WINDOW)`).
+    the near plane are left to `_setup_crossing` (they scan nothing here).
     """
     hv = _pixel_homogeneous(clip_positions(vertices, view_projection), width, height)
     w = hv[:, 2]
@@ -163,9 +161,9 @@ def _setup(vertices, faces, view_projection, near, far, cull, *, width, height):
     visible = all_in & jnp.any(fw <= far, axis=1) & (x0 <= x1) & (y0 <= y1) & facing_ok
     nx = jnp.where(visible, x1 - x0 + 1, 1).astype(jnp.int32)
     centres = jnp.where(visible, nx * (y1 - y0 + 1).astype(jnp.int32), 0)
+    centres = jnp.where(crossing, 0, centres)
     info = jnp.stack([x0.astype(jnp.int32), y0.astype(jnp.int32), nx, centres], axis=1)
-    n_jobs = jnp.sum(jnp.where(crossing, 0, -(-centres // _WINDOW)))
-    return info, crossing, n_jobs
+    return info, crossing
 
 
 def _setup_crossing(clip: np.ndarray, width: int, height: int, near: float, far: float, cull: bool) -> np.ndarray:
@@ -202,16 +200,22 @@ def _setup_crossing(clip: np.ndarray, width: int, height: int, near: float, far:
 # The fragment kernel: both z-buffer passes in one program.
 
 
-def _jobs(info, n_jobs):
-    """Cut each triangle's box into jobs of `_WINDOW` pixel centres (row-major over the box).
+def _jobs(centres: np.ndarray, n_jobs: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cut each triangle's box into jobs of `_WINDOW` pixel centres (row-major over the box), on the host.
 
-    **Returns:** `(triangle, first)` per job, (n_jobs,) each; jobs past the real
-    count repeat the last triangle with `first` past its box (they do nothing).
+    **Arguments:** `centres`: (T,) pixel centres of each triangle's box (0: none);
+    `n_jobs`: the padded job count (at least the real one).
+
+    **Returns:** `(triangle, first)` per job, (n_jobs,) int32 each; padding jobs
+    have `first` past any box (they do nothing).
     """
-    count = -(-info[:, 3] // _WINDOW)
-    start = jnp.cumsum(count) - count
-    tri = jnp.repeat(jnp.arange(info.shape[0], dtype=jnp.int32), count, total_repeat_length=n_jobs)
-    first = (jnp.arange(n_jobs, dtype=jnp.int32) - start[tri]) * _WINDOW
+    count = -(-centres // _WINDOW)
+    total = int(count.sum())
+    tri = np.zeros(n_jobs, np.int32)
+    tri[:total] = np.repeat(np.arange(len(centres), dtype=np.int32), count)
+    first = np.full(n_jobs, np.iinfo(np.int32).max // 2, np.int32)
+    start = np.cumsum(count) - count
+    first[:total] = (np.arange(total, dtype=np.int32) - np.repeat(start.astype(np.int32), count)) * _WINDOW
     return tri, first
 
 
@@ -265,10 +269,9 @@ def _fragments(hv, faces, info, tri, first, near, far, width, height):
     return pix.reshape(-1), depth.reshape(-1), jnp.broadcast_to(tri[:, None], pix.shape).reshape(-1)
 
 
-@functools.partial(jax.jit, static_argnames=("n_jobs", "width", "height"))
-def _zbuffer(vertices, faces, view_projection, info, near, far, *, n_jobs, width, height):
+@functools.partial(jax.jit, static_argnames=("width", "height"))
+def _zbuffer(vertices, faces, view_projection, info, job_tri, first, near, far, *, width, height):
     hv = _pixel_homogeneous(clip_positions(vertices, view_projection), width, height)
-    job_tri, first = _jobs(info, n_jobs)
     pix, depth, tri = _fragments(hv, faces, info, job_tri, first, near, far, width, height)
     n = width * height
     zbuf = jnp.full(n, jnp.inf, hv.dtype).at[pix].min(depth, mode="drop")
@@ -301,9 +304,9 @@ def rasterize_arrays(
     vp = jax.device_put(np.asarray(view_projection, np.float32))
     near = np.float32(near)
     far = np.float32(far)
-    info, crossing, n_jobs = _setup(vertices, faces, vp, near, far, np.bool_(cull_backfaces), width=width, height=height)
+    info, crossing = _setup(vertices, faces, vp, near, far, np.bool_(cull_backfaces), width=width, height=height)
     crossing = np.asarray(crossing)
-    n_jobs = int(n_jobs)
+    centres = np.asarray(info)[:, 3]
     if crossing.any():
         idx = np.flatnonzero(crossing)
         vp64 = np.asarray(view_projection, np.float64)
@@ -311,10 +314,12 @@ def rasterize_arrays(
         rows = _setup_crossing(clip, width, height, float(near), float(far), cull_backfaces)
         info = np.array(info)
         info[idx] = rows
-        n_jobs += int(np.sum(-(-rows[:, 3] // _WINDOW)))
+        centres = info[:, 3]
         info = jax.device_put(info)
-    tri_id, zbuf = _zbuffer(vertices, faces, vp, info, near, far, n_jobs=pad_size(n_jobs, _MIN_JOBS), width=width,
-                            height=height)  # fmt: skip
+    n_jobs = int(np.sum(-(-centres // _WINDOW)))
+    job_tri, first = _jobs(centres, pad_size(n_jobs, _MIN_JOBS))
+    tri_id, zbuf = _zbuffer(vertices, faces, vp, info, jax.device_put(job_tri), jax.device_put(first), near, far,
+                            width=width, height=height)  # fmt: skip
     return np.asarray(tri_id).reshape(height, width), np.asarray(zbuf).reshape(height, width)
 
 

@@ -67,9 +67,9 @@ def run(args) -> int:
     start = time.perf_counter()
     scene = load_scene(args.scene, shading=args.shading, size=size)
     rgba = render_rgba(scene, antialias=args.antialias)
-    image = np.asarray(_encode(rgba), np.float64)
-    if not np.all(np.isfinite(image)):
+    if not np.all(np.isfinite(np.asarray(rgba))):  # never expected; never written
         raise FailureError("the rendering has non-finite pixels; nothing was written", file=args.scene)
+    image = np.asarray(_encode(rgba), np.float64)
     if not args.alpha:
         image = image[..., :3]
     write_png(out, image, bits=args.bits)

@@ -119,6 +119,38 @@ def worker_jax(args) -> dict:
     return out
 
 
+def worker_grad(args) -> dict:
+    """Forward and forward + gradient only (run again under different XLA flags)."""
+    import jax
+    import jax.numpy as jnp
+
+    import diffwash
+
+    scene = diffwash.load_scene(args.scene)
+    vis = diffwash.rasterize(scene)
+    target = diffwash.render(scene) * 0.95
+
+    @jax.jit
+    @jax.value_and_grad
+    def loss_and_grad(params):
+        return jnp.mean((diffwash.render(scene, params) - target) ** 2)
+
+    jax.block_until_ready(loss_and_grad(scene.params))
+    jax.block_until_ready(diffwash.render(scene, visibility=vis))
+    return {
+        "forward_visibility_given": timed(
+            lambda: jax.block_until_ready(diffwash.render(scene, visibility=vis)), args.repeats
+        ),
+        "forward_grad": timed(lambda: jax.block_until_ready(loss_and_grad(scene.params)), args.repeats),
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
+    }
+
+
+#: XLA CPU option that helps the gradient here (YNNPACK reduction fusions off); experimental,
+#: so measured as an extra row rather than set by the library.
+NO_YNN = "--xla_cpu_experimental_ynn_fusion_type="
+
+
 def worker_raster_table(args) -> dict:
     import dataclasses
 
@@ -327,18 +359,24 @@ def worker_cli(args) -> dict:
     return out
 
 
-WORKERS = {"jax": worker_jax, "raster": worker_raster_table, "compare": worker_compare, "cli": worker_cli}
+WORKERS = {
+    "jax": worker_jax,
+    "grad": worker_grad,
+    "raster": worker_raster_table,
+    "compare": worker_compare,
+    "cli": worker_cli,
+}
 
 
 # ---------------------------------------------------------------------------
 # Driver.
 
 
-def run_worker(name: str, args) -> dict:
+def run_worker(name: str, args, env: dict | None = None) -> dict:
     cmd = [sys.executable, __file__, "--worker", name, "--scene", args.scene, "--repeats", str(args.repeats),
            "--rounds", str(args.rounds), "--raster-sizes", *map(str, args.raster_sizes)]  # fmt: skip
-    print(f"[bench_render] {name} ...", file=sys.stderr, flush=True)
-    r = subprocess.run(cmd, capture_output=True, text=True)
+    print(f"[bench_render] {name} {env or ''}...", file=sys.stderr, flush=True)
+    r = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})})
     if r.returncode != 0:
         raise RuntimeError(f"worker {name} failed:\n{r.stderr}")
     return json.loads(r.stdout.strip().splitlines()[-1])
@@ -369,6 +407,12 @@ def report(res: dict, args) -> str:
     ]
     for name, t, target in rows:
         lines.append(f"| {name} | {ms(t)} | {target} |")
+    g = res.get("grad_no_ynn", {})
+    if "forward_grad" in g:
+        lines.append(f"| forward + gradient, `XLA_FLAGS={NO_YNN}` (another process) | {ms(g['forward_grad'])} | |")
+        lines.append(f"| forward, visibility passed in, same flag | {ms(g['forward_visibility_given'])} | |")
+    elif g:
+        lines.append(f"| forward + gradient with `XLA_FLAGS={NO_YNN}` | not run: {g['error']} | |")
     lines.append("")
     lines.append("| compile (cold process, no persistent cache) | seconds |")
     lines.append("| --- | --- |")
@@ -445,6 +489,11 @@ def main() -> None:
         print(json.dumps(WORKERS[args.worker](args)))
         return
     res = {name: run_worker(name, args) for name in ("jax", "raster", "compare", "cli")}
+    flags = (os.environ.get("XLA_FLAGS", "") + " " + NO_YNN).strip()
+    try:
+        res["grad_no_ynn"] = run_worker("grad", args, {"XLA_FLAGS": flags})
+    except RuntimeError as e:  # the flag is experimental: a JAX without it refuses it
+        res["grad_no_ynn"] = {"error": str(e).splitlines()[-1]}
     text = report(res, args)
     print(text)
     if args.json:

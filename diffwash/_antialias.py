@@ -185,9 +185,24 @@ def _analyse(vertices, faces, view_projection, neighbour, opposite, tri_id, a, b
     return found, out_k, out_tri.astype(jnp.int32)
 
 
-def _silhouettes(vertices, faces, vp, tri_id: np.ndarray, depth: np.ndarray, width: int, height: int, size: int | None):
-    """Work items from concrete arrays (host). `size`: pad to this many (else a bucket size)."""
+def _silhouettes(
+    vertices, faces, vp, tri_id: np.ndarray, depth: np.ndarray, width: int, height: int, cull: bool, size: int | None
+):
+    """Work items from concrete arrays (host). `size`: pad to this many (else a bucket size).
+
+    With back faces culled, every visible triangle faces the camera, so a pair
+    of pixels in two triangles that share an edge straddles no silhouette (the
+    segment crosses the shared edge): those pairs, most of them with small
+    triangles, are dropped before the analysis.
+    """
     a, b, down = _pairs(tri_id, depth)
+    neighbour, _ = edge_topology(faces)
+    if cull and len(a):
+        flat = tri_id.reshape(-1)
+        ta, tb = flat[a], flat[b]
+        nb = neighbour[ta]
+        adjacent = (nb[:, 0] == tb) | (nb[:, 1] == tb) | (nb[:, 2] == tb)
+        a, b, down = a[~adjacent], b[~adjacent], down[~adjacent]
     m = pad_size(len(a), 64)
     n = width * height
 
@@ -235,6 +250,7 @@ def prepare(scene: Any, vis: Visibility) -> Visibility:
             np.asarray(vis.depth),
             scene.width,
             scene.height,
+            scene.cull_backfaces,
             None,
         )
         return eqx.tree_at(
@@ -312,7 +328,7 @@ def traced_visibility(scene: Any, antialias: bool) -> Visibility:
         tri_id, depth = rasterize_arrays(vertices, faces, vp, float(near), float(far), w, h, cull)
         out = [tri_id.astype(np.int32), depth.astype(np.float32)]
         if antialias:
-            items = _silhouettes(vertices, faces, vp, tri_id, depth, w, h, 2 * n)
+            items = _silhouettes(vertices, faces, vp, tri_id, depth, w, h, cull, 2 * n)
             out += [items[k].astype(np.int32) for k in ("a", "b", "tri", "edge")]
         return tuple(out)
 

@@ -39,6 +39,7 @@ __all__ = [
     "linear_srgb_to_lab",
     "srgb_to_lab",
     "delta_e_2000",
+    "delta_e_2000_residuals",
     "SRGB_TO_XYZ",
     "XYZ_TO_SRGB",
     "WHITE_D65",
@@ -167,6 +168,33 @@ def delta_e_2000(
     follow Sharma's conventions; where the colours are identical the difference
     is 0 with a zero (finite) gradient.
     """
+    tL, tC, tH, R_T = _ciede2000_terms(lab1, lab2, textiles)
+    return _safe_sqrt(tL * tL + tC * tC + tH * tH + R_T * tC * tH)
+
+
+def delta_e_2000_residuals(
+    lab1: Float[ArrayLike, "*#b 3"], lab2: Float[ArrayLike, "*#b 3"], *, textiles: bool = False
+) -> Float[Array, "*b 3"]:
+    r"""Three smooth residuals whose sum of squares is the squared CIEDE2000 difference.
+
+    With Sharma et al.'s weighted differences $t_L = \Delta L'/(k_L S_L)$,
+    $t_C = \Delta C'/S_C$, $t_H = \Delta H'/S_H$ and the rotation term $R_T$,
+    $\Delta E_{00}^2 = t_L^2 + t_C^2 + t_H^2 + R_T t_C t_H$; completing the
+    square gives
+
+    $$ r = \bigl(t_L,\; t_C + \tfrac12 R_T t_H,\; \sqrt{1 - R_T^2/4}\; t_H\bigr),
+       \qquad |r|^2 = \Delta E_{00}^2 $$
+
+    ($|R_T| < 2$). Unlike $\Delta E_{00}$ itself, whose square root has a kink
+    at zero, these are smooth: the residuals a Gauss-Newton or
+    Levenberg-Marquardt fit in CIEDE2000 wants.
+    """
+    tL, tC, tH, R_T = _ciede2000_terms(lab1, lab2, textiles)
+    return jnp.stack([tL, tC + 0.5 * R_T * tH, _safe_sqrt(1 - 0.25 * R_T * R_T) * tH], axis=-1)
+
+
+def _ciede2000_terms(lab1: ArrayLike, lab2: ArrayLike, textiles: bool) -> tuple[Array, Array, Array, Array]:
+    """Sharma et al.'s weighted differences t_L, t_C, t_H and the rotation term R_T."""
     lab1, lab2 = _float(lab1), _float(lab2)
     L1, a1, b1 = lab1[..., 0], lab1[..., 1], lab1[..., 2]
     L2, a2, b2 = lab2[..., 0], lab2[..., 1], lab2[..., 2]
@@ -211,5 +239,4 @@ def delta_e_2000(
     R_T = -jnp.sin(jnp.radians(2 * dtheta)) * R_C
 
     k_L = 2.0 if textiles else 1.0
-    tL, tC, tH = dL / (k_L * S_L), dC / S_C, dH / S_H
-    return _safe_sqrt(tL * tL + tC * tC + tH * tH + R_T * tC * tH)
+    return dL / (k_L * S_L), dC / S_C, dH / S_H, R_T

@@ -16,6 +16,10 @@ from . import swatches as swatches
 from ._camera import Camera as Camera
 from ._errors import DiffwashError as DiffwashError
 from ._errors import FailureError as FailureError
+from ._raster import Visibility as Visibility
+from ._raster import rasterize as rasterize
+from ._render import render as render
+from ._render import render_rgba as render_rgba
 from ._scene import Mesh as Mesh
 from ._scene import Scene as Scene
 from ._scene import load_mesh as load_mesh

@@ -11,6 +11,7 @@ import json
 import math
 import os
 import tempfile
+import zlib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -133,9 +134,10 @@ def read_image(path: str | os.PathLike) -> tuple[np.ndarray, int]:
         import png
 
         try:
-            w, h, rows, info = png.Reader(filename=str(path)).asDirect()
-            a = np.vstack([np.asarray(r, np.uint16) for r in rows]).reshape(h, w, info["planes"])
-        except png.Error as e:
+            with open(path, "rb") as f:
+                w, h, rows, info = png.Reader(file=f).asDirect()
+                a = np.vstack([np.asarray(r, np.uint16) for r in rows]).reshape(h, w, info["planes"])
+        except (png.Error, zlib.error, ValueError, EOFError) as e:
             raise DiffwashError(f"not a readable PNG: {e}", file=path) from None
         bits = info["bitdepth"]
         a = a.astype(np.float64) / ((1 << bits) - 1)

@@ -43,7 +43,7 @@ import math
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-__all__ = ["layer", "composite", "over", "infinite_reflectance", "invert_black_white"]
+__all__ = ["layer", "composite", "composite_stack", "over", "infinite_reflectance", "invert_black_white"]
 
 # Power series of cosh(sqrt(z)) and sinh(sqrt(z))/sqrt(z) in z = (beta x)^2, used
 # for z < 1 (terms to z^9: the truncation error is below 1e-18).
@@ -83,7 +83,7 @@ def layer(
     `(R, T)`, each in `[0, 1]` with `R + T <= 1`, of the broadcast shape.
     """
     K, S, x = _as_float(K, S, x)
-    K, S, x = jnp.broadcast_arrays(K, S, jnp.maximum(x, 0))
+    K, S, x = jnp.broadcast_arrays(K, S, jnp.where(x < 0, 0, x))  # not maximum: its gradient at 0 is 1/2
     q = K * (K + 2 * S)  # beta^2
     z = q * x * x  # (beta x)^2
     small = z < 1
@@ -122,8 +122,14 @@ def composite(
     $$ R = R_1 + \frac{T_1^2 R_2}{1 - R_1 R_2}, \qquad T = \frac{T_1 T_2}{1 - R_1 R_2} $$
 
     (Kubelka's compositing of the inter-reflections, Curtis et al. 1997, eq. 5).
-    Light enters from layer 1's side. The degenerate `R1 = R2 = 1` (two perfect
-    mirrors, so `T1 = 0` for a physical layer) gives `R = R1`, `T = 0`.
+    Light enters from layer 1's side. Layer 2 may be any stack; layer 1 is taken
+    to reflect alike from both sides, which is exact for a single homogeneous
+    layer. So build a stack from the bottom up,
+    `composite(*top, *composite(*middle, *bottom))`; to put a stack on top of
+    something, or to compose stacks in any order (associatively), use
+    `composite_stack`, which also carries each stack's reflectance from below.
+    The degenerate `R1 = R2 = 1` (two perfect mirrors, so `T1 = 0` for a
+    physical layer) gives `R = R1`, `T = 0`.
 
     **Returns:**
 
@@ -132,6 +138,34 @@ def composite(
     R1, T1, R2, T2 = _as_float(R1, T1, R2, T2)
     d = 1 - R1 * R2
     return R1 + _safe_div(T1 * T1 * R2, d), _safe_div(T1 * T2, d)
+
+
+def composite_stack(
+    top: tuple[Float[ArrayLike, "*#b"], Float[ArrayLike, "*#b"], Float[ArrayLike, "*#b"]],
+    bottom: tuple[Float[ArrayLike, "*#b"], Float[ArrayLike, "*#b"], Float[ArrayLike, "*#b"]],
+) -> tuple[Float[Array, "*b"], Float[Array, "*b"], Float[Array, "*b"]]:
+    r"""Stack `top` on `bottom`, each given as `(R, R_below, T)`.
+
+    A stack of different layers reflects differently from above (`R`) and from
+    below (`R_below`); it transmits the same both ways (`T`, by reciprocity). A
+    single layer is `(R, R, T)`. With both reflectances tracked, stacking is
+    associative: `composite_stack(composite_stack(a, b), c) ==
+    composite_stack(a, composite_stack(b, c))`.
+
+    $$ R = R_1 + \frac{T_1^2 R_2}{1 - R_1' R_2}, \quad
+       R' = R_2' + \frac{T_2^2 R_1'}{1 - R_1' R_2}, \quad
+       T = \frac{T_1 T_2}{1 - R_1' R_2}, $$
+
+    with primes for reflectance from below.
+
+    **Returns:**
+
+    `(R, R_below, T)` of the stack.
+    """
+    R1, R1b, T1 = _as_float(*top)
+    R2, R2b, T2 = _as_float(*bottom)
+    d = 1 - R1b * R2
+    return R1 + _safe_div(T1 * T1 * R2, d), R2b + _safe_div(T2 * T2 * R1b, d), _safe_div(T1 * T2, d)
 
 
 def over(
@@ -175,28 +209,32 @@ def invert_black_white(
        S = \frac1b \coth^{-1}\frac{b^2 - (a - R_w)(a - 1)}{b (1 - R_w)},\quad K = S(a - 1). $$
 
     A physical pair has `0 < R_black < R_white < 1`. Inputs outside that range
-    are clamped into it, so the answer is always finite: `R_black` to
-    `[eps, 1 - 2 eps']`, `R_white` to `[R_black + eps', 1 - eps']` with
-    `eps = 1e-6` and `eps' = 1e-6` (float64) or `eps = 1e-4`, `eps' = 1e-3`
-    (float32). Clamped inputs give a layer that is very thin, very dark or very
-    opaque, as the data suggest.
+    are clamped into it, so the answer (and its gradient) is always finite:
+    `R_black` to `[eps, 1 - 2 eps]` and `R_white` to `[R_black + eps, 1 - eps]`,
+    with `eps = 1e-15` (float64) or `1e-7` (float32). Clamped inputs give a
+    layer that is very thin, very dark or very opaque, as the data suggest.
+
+    Evaluated in forms without cancellation: with $r_b$, $r_w$ the inputs,
+    $a - 1 = (1 - r_b)(1 - r_w) / (2 r_b)$ and the argument of $\coth^{-1}$,
+    $y$, has $y - 1 \propto (1 - r_w)(r_w - r_b)$, so `K` and `S` keep their
+    precision down to nearly opaque layers (`R_white` close to `R_black`)
+    until the inputs' own rounding dominates.
 
     **Returns:**
 
     `(K, S)`, each `>= 0`, per unit thickness.
     """
     R_white, R_black = _as_float(R_white, R_black)
-    if R_white.dtype == jnp.float64:
-        lo, gap = 1e-6, 1e-6
-    else:
-        lo, gap = 1e-4, 1e-3
-    Rb = jnp.clip(R_black, lo, 1 - 2 * gap)
-    Rw = jnp.clip(R_white, Rb + gap, 1 - gap)
-    a = 0.5 * (Rw + (Rb - Rw + 1) / Rb)
-    b = jnp.sqrt(jnp.maximum(a * a - 1, jnp.finfo(a.dtype).tiny))
-    y = (b * b - (a - Rw) * (a - 1)) / (b * (1 - Rw))
-    # arccoth(y) = 0.5 log((y + 1) / (y - 1)) for y > 1.
-    y = jnp.maximum(y, 1 + jnp.finfo(a.dtype).eps)
-    S = 0.5 * jnp.log1p(2 / (y - 1)) / b
-    K = S * (a - 1)
+    eps = 1e-15 if R_white.dtype == jnp.float64 else 1e-7
+    Rb = jnp.clip(R_black, eps, 1 - 2 * eps)
+    Rw = jnp.clip(R_white, Rb + eps, 1 - eps)
+    am1 = (1 - Rb) * (1 - Rw) / (2 * Rb)  # a - 1
+    b = jnp.sqrt(am1 * (am1 + 2))
+    # y = sqrt(am1 / (am1 + 2)) (1 + Rw) / (1 - Rw);  arccoth(y) = log((y + 1) / (y - 1)) / 2
+    q = (1 - Rb) * (1 - Rw) + 4 * Rb
+    c = jnp.sqrt((1 - Rb) * (1 - Rw) / q)
+    num = (1 + Rw) * c + (1 - Rw)  # (y + 1)(1 - Rw)
+    den = 4 * (1 - Rw) * (Rw - Rb) / (q * num)  # (y - 1)(1 - Rw), without cancellation
+    S = 0.5 * jnp.log(num / den) / b
+    K = S * am1
     return K, S

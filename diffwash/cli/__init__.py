@@ -21,7 +21,7 @@ from .._version import __version__
 __all__ = ["main", "COMMANDS"]
 
 #: Subcommand modules, in the order `diffwash --help` lists them.
-COMMANDS = ("pigments", "swatches", "render", "demo")
+COMMANDS = ("pigments", "swatches", "render", "swatch_card", "fit_swatch", "fit_image", "demo")
 
 
 def enable_compilation_cache() -> None:

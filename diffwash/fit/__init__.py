@@ -14,3 +14,6 @@ from ._swatch import fit_swatches as fit_swatches
 from ._photo import Layout as Layout
 from ._photo import read_layout as read_layout
 from ._photo import parse_layout as parse_layout
+from ._image import FITTABLE as FITTABLE
+from ._image import ImageFit as ImageFit
+from ._image import fit_image as fit_image

@@ -44,7 +44,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .. import colorimetry, km
 
-__all__ = ["FitModel", "Rows", "predict", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2"]
+__all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2"]
 
 #: Internal diffuse reflectance of a binder-air surface of refractive index 1.5
 #: for light arriving diffusely from inside (Judd 1942): Saunderson's `k2`.
@@ -68,9 +68,16 @@ class FitModel(eqx.Module):
       figure of merit itself), `"lab"` (CIELAB differences) or `"srgb"`
       (display sRGB differences x 100; the plain fit).
     - `prior`: weight of a weak prior pulling each pigment's three `log K` (and
-      three `log S`) towards their mean, in CIEDE2000 units per unit of log. It
-      only decides directions the data leave free (a clipped channel, whose
-      coefficient is otherwise only bounded); 0 turns it off.
+      three `log S`) towards their mean, in CIEDE2000 units per unit of log
+      (default 0.01: moving a coefficient by a factor e away from the others
+      costs a hundredth of a CIEDE2000 unit). It only decides the directions
+      the data leave free: a clipped channel, whose coefficient is otherwise
+      only bounded, or a channel already opaque at the thinnest amount, where
+      only K/S is seen and K and S would drift to infinity together. 0 turns
+      it off. (On the NTU training amounts the held-out error is the same
+      within 0.01 CIEDE2000 for weights 0.01 to 0.3; larger weights converge
+      in fewer steps but bias weakly determined coefficients of noise-free
+      data by several per cent.)
     """
 
     thickness: Literal["linear", "power"] = eqx.field(static=True, default="power")
@@ -167,6 +174,17 @@ def predict(
     R, T = km.layer(jnp.exp(theta["log_K"]), jnp.exp(theta["log_S"]), t)
     inside = km.over(R, T, _to_internal(model, jnp.asarray(ground)))
     return _to_measured(model, inside)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def predict_jit(model: FitModel, theta: dict[str, Array], amount: Array, ground: Array) -> Array:
+    """`predict`, compiled (for evaluating fitted pigments outside a fit)."""
+    return predict(model, theta, amount, ground)
+
+
+def pad_rows(n: int) -> int:
+    """Rows are padded to a multiple of 8, so that a few compiled fits serve any card or table."""
+    return max(8, -(-n // 8) * 8)
 
 
 def effective(pred: Array, obs: Array, lo: Array, hi: Array) -> Array:
@@ -331,7 +349,7 @@ class BatchFit(eqx.Module):
     param_names: tuple[str, ...] = eqx.field(static=True)
 
 
-def fit_rows(model: FitModel, rows: Rows, starts: dict[str, np.ndarray], *, max_steps: int = 200) -> BatchFit:
+def fit_rows(model: FitModel, rows: Rows, starts: dict[str, np.ndarray], *, max_steps: int = 1000) -> BatchFit:
     """Fit a batch of pigments to their rows with Levenberg-Marquardt, all at once.
 
     Each pigment starts from the best (lowest loss) of its starting points;

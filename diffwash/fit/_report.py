@@ -17,7 +17,7 @@ import numpy as np
 
 from .._io import atomic_path
 
-__all__ = ["save_swatch_report", "save_table_report"]
+__all__ = ["save_swatch_report", "save_table_report", "save_image_report"]
 
 
 def _display(linear: Any) -> np.ndarray:
@@ -168,4 +168,48 @@ def save_table_report(path: str | os.PathLike, fit: Any, table: Any, held_out: A
     extra = " (* held out)" if held_out is not None else ""
     _pairs(ax, groups, f"measured (left half) | fitted (right half){extra}; model: "
                        f"{', '.join(f'{k}={v}' for k, v in fit.model.describe().items())}", step=2.0)  # fmt: skip
+    _save(fig, path)
+
+
+def save_image_report(path: str | os.PathLike, fit: Any, targets: Sequence[Any], scenes: Sequence[Any]) -> None:
+    """Write a PNG report of an `ImageFit`: per view the target, the start, the fit and their difference, and the loss.
+
+    `targets` and `scenes` are what `fit_image` was given (paths or arrays; Scenes).
+    """
+    from .._io import read_image
+    from .._render import render
+
+    plt = _plt()
+    scenes = list(scenes) * (len(targets) if len(scenes) == 1 else 1)
+    n = len(targets)
+    fig, axes = plt.subplots(n, 5, figsize=(13, 2.8 * n + 0.4), squeeze=False)
+    for i, (t, sc) in enumerate(zip(targets, scenes)):
+        if isinstance(t, (str, os.PathLike)):
+            target, _ = read_image(t)
+        else:
+            target = _display(t)
+        start = _display(np.asarray(render(sc, fit.start_params)))
+        fitted = _display(np.asarray(render(sc, fit.params)))
+        diff = np.abs(fitted - target).max(axis=-1)
+        for ax, img, title in ((axes[i, 0], target, "target"), (axes[i, 1], start, "start"),
+                               (axes[i, 2], fitted, "fitted")):  # fmt: skip
+            ax.imshow(np.clip(img, 0, 1))
+            ax.set_title(f"view {i}: {title}" if n > 1 else title, fontsize=8)
+            ax.axis("off")
+        im = axes[i, 3].imshow(diff, cmap="magma", vmin=0, vmax=max(float(diff.max()), 1 / 255))
+        axes[i, 3].set_title(f"|fitted - target| (sRGB), rms {fit.rms[i]:.3g}", fontsize=8)
+        axes[i, 3].axis("off")
+        fig.colorbar(im, ax=axes[i, 3], fraction=0.046)
+        if i == 0:
+            ax = axes[0, 4]
+            ax.semilogy(range(1, len(fit.history) + 1), np.maximum(fit.history, 1e-16), "o-", ms=3)
+            ax.set_xlabel("step", fontsize=8)
+            ax.set_ylabel("rms residual", fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.set_title(f"{fit.solver}: {'converged' if fit.converged else 'NOT converged'} in {fit.iterations}",
+                         fontsize=8)  # fmt: skip
+        else:
+            axes[i, 4].axis("off")
+    fig.suptitle("fitted: " + ", ".join(fit.fitted), fontsize=9)
+    fig.tight_layout()
     _save(fig, path)

@@ -36,7 +36,8 @@ from .._errors import DiffwashError
 from .._io import read_image
 from ..pigments import Pigment
 from ..pigments import save as save_pigments
-from ._kmfit import FitModel, Rows, fit_rows, ground_pair_start, log_sd, predict, single_ground_start, starts_for
+from ._kmfit import FitModel, Rows, fit_rows, ground_pair_start, log_sd, pad_rows, predict_jit, single_ground_start
+from ._kmfit import starts_for
 from ._photo import Calibration, Layout, PatchStats, calibrate, linearise, parse_layout, patch_stats, read_layout
 from ._table import delta_e_displayed
 
@@ -44,7 +45,7 @@ __all__ = ["SWATCH_MODEL", "PatchResult", "SwatchFit", "fit_swatches"]
 
 #: The model for swatch photos: thickness = coats (the renderer's unit), no
 #: surface term (as the renderer), CIEDE2000 residuals, a weak prior.
-SWATCH_MODEL = FitModel(thickness="linear", surface="none", loss="de2000", prior=0.01)
+SWATCH_MODEL = FitModel(thickness="linear", surface="none", loss="de2000")
 _CHANNELS = ("red", "green", "blue")
 
 
@@ -125,7 +126,7 @@ class SwatchFit:
         else:
             g = np.asarray(ground, np.float64)
         theta = {"log_K": np.log(np.maximum(self.pigment.K, 1e-300)), "log_S": np.log(np.maximum(self.pigment.S, 1e-300))}
-        return np.asarray(predict(self.model, theta, coats, np.broadcast_to(g, coats.shape + (3,))), np.float64)
+        return np.asarray(predict_jit(self.model, theta, coats, np.broadcast_to(g, coats.shape + (3,))), np.float64)
 
     def to_dict(self) -> dict[str, Any]:
         """The diagnostics, JSON-ready."""
@@ -196,7 +197,7 @@ def fit_swatches(
     *,
     name: str | None = None,
     model: FitModel = SWATCH_MODEL,
-    max_steps: int = 200,
+    max_steps: int = 1000,
 ) -> SwatchFit:
     """Fit one pigment's K and S (per coat) to photos of its swatch card.
 
@@ -286,14 +287,16 @@ def fit_swatches(
     else:
         K0, S0 = single_ground_start(amount, grounds, rgb)
     starts = {k: v[None] for k, v in starts_for(model, K0, S0).items()}
-    batch = Rows(amount=amount[None], ground=grounds[None], rgb=rgb[None], lo=lo[None], hi=hi[None],
-                 weight=weight[None])  # fmt: skip
+    n, M = len(amount), pad_rows(len(amount))
+    pad = lambda a, fill: np.concatenate([a, np.full((M - n,) + a.shape[1:], fill, a.dtype)])[None]  # noqa: E731
+    batch = Rows(amount=pad(amount, 0.0), ground=pad(grounds, 0.5), rgb=pad(rgb, 0.5), lo=pad(lo, False),
+                 hi=pad(hi, False), weight=pad(weight, 0.0))  # fmt: skip
     res = fit_rows(model, batch, starts, max_steps=max_steps)
     theta = {k: np.asarray(v[0], np.float64) for k, v in res.theta.items()}
     sizes = {k: int(np.prod(theta[k].shape)) for k in res.param_names}
     sd = log_sd(np.asarray(res.jacobian[0], np.float64), sizes, float(res.loss[0]))
     pigment = Pigment(K=np.exp(theta["log_K"]), S=np.exp(theta["log_S"]), name=name)
-    fitted = np.asarray(res.fitted[0], np.float64)
+    fitted = np.asarray(res.fitted[0], np.float64)[:n]
     des = delta_e_displayed(fitted, rgb)
     patches = [
         PatchResult(photo=k, box=p.box.tolist(), coats=p.coats, ground=p.ground, observed=rgb[i], fitted=fitted[i],

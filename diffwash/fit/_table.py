@@ -44,7 +44,7 @@ from .. import colorimetry
 from .._errors import DiffwashError
 from ..pigments import Pigment
 from ..pigments import save as save_pigments
-from ._kmfit import PLAIN, FitModel, Rows, fit_rows, log_sd, predict, single_ground_start, starts_for
+from ._kmfit import PLAIN, FitModel, Rows, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
 from ._kmfit import ground_pair_start
 
 __all__ = ["MeasurementTable", "TableFit", "read_table", "fit_table", "read_ntu_wpsm", "PLAIN", "COLUMNS"]
@@ -320,7 +320,7 @@ class TableFit:
         p = self.pigments[i]
         theta = {"log_K": np.log(np.maximum(p.K, 1e-300)), "log_S": np.log(np.maximum(p.S, 1e-300)),
                  "log_gamma": np.log(self.gamma[i])}  # fmt: skip
-        return np.asarray(predict(self.model, theta, amount, g), np.float64)
+        return np.asarray(predict_jit(self.model, theta, amount, g), np.float64)
 
     def evaluate(self, table: MeasurementTable) -> np.ndarray:
         """CIEDE2000 between the table's measured colours and the fit's prediction, per row.
@@ -377,7 +377,7 @@ def _delta_e_displayed(pred: Any, obs: Any) -> Any:
 def _pack(table: MeasurementTable, model: FitModel) -> tuple[Rows, dict[str, np.ndarray], list[np.ndarray]]:
     names = table.names
     index = [np.flatnonzero(table.pigment == n) for n in names]
-    M = max(len(ix) for ix in index)
+    M = pad_rows(max(len(ix) for ix in index))
     P = len(names)
     amount = np.zeros((P, M))
     ground = np.full((P, M, 3), 0.5)
@@ -434,7 +434,7 @@ def fit_table(
     *,
     model: FitModel = FitModel(),
     linear: bool = False,
-    max_steps: int = 200,
+    max_steps: int = 1000,
 ) -> TableFit:
     """Fit every pigment of a measurement table at once.
 

@@ -37,6 +37,7 @@ trade would leave a direction with no information, so one side is held fixed
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import os
@@ -368,7 +369,9 @@ def fit_image(
         tgts.append(jnp.asarray(linear.reshape(-1, 3)[covered], dtype))
     light_length = float(np.linalg.norm(np.asarray(base.light, np.float64)))
     cast = lambda a: jnp.asarray(a, dtype) if np.asarray(a).dtype.kind == "f" else a  # noqa: E731
-    problem = _Problem(scenes=tuple(jax.tree.map(cast, s) for s in scene_list), visibilities=tuple(vis),
+    # Without their file names, scenes of the same shapes share one compiled solver step.
+    anonymous = [dataclasses.replace(jax.tree.map(cast, s), path=None) for s in scene_list]
+    problem = _Problem(scenes=tuple(anonymous), visibilities=tuple(vis),
                        indices=tuple(idx), targets=tuple(tgts), base=jax.tree.map(cast, base),
                        light_length=jnp.asarray(light_length, dtype), loss=loss)  # fmt: skip
     y0 = {k: jnp.asarray(v, dtype) for k, v in _encode(base, free).items()}

@@ -297,7 +297,8 @@ def fit_swatches(
     sd = log_sd(np.asarray(res.jacobian[0], np.float64), sizes, float(res.loss[0]))
     pigment = Pigment(K=np.exp(theta["log_K"]), S=np.exp(theta["log_S"]), name=name)
     fitted = np.asarray(res.fitted[0], np.float64)[:n]
-    des = delta_e_displayed(fitted, rgb)
+    # As the camera would have recorded the fit: a clipped channel shows its bound when the fit lies beyond it.
+    des = delta_e_displayed(np.where(lo, np.maximum(fitted, rgb), np.where(hi, np.minimum(fitted, rgb), fitted)), rgb)
     patches = [
         PatchResult(photo=k, box=p.box.tolist(), coats=p.coats, ground=p.ground, observed=rgb[i], fitted=fitted[i],
                     delta_e=float(des[i]), weight=float(weight[i]), bound=[bool(a or b) for a, b in zip(lo[i], hi[i])],

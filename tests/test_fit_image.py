@@ -3,6 +3,7 @@
 import json
 
 import equinox as eqx
+import jax
 import numpy as np
 import pytest
 from conftest import DATA
@@ -10,14 +11,15 @@ from conftest import DATA
 import diffwash
 from diffwash import DiffwashError
 from diffwash.fit import fit_image
-from diffwash.fit._image import _get, load_cameras, parse_fit_list
+from diffwash.fit._image import _GLAZE_INPUTS, _get, _glaze, _glaze_terms, _prepare_view, _shade, load_cameras
+from diffwash.fit._image import parse_fit_list
 
 
-def scene_file(tmp_path, name, mesh, size=64, **extra):
+def scene_file(tmp_path, name, mesh, size=64, camera=None, **extra):
     data = {
         "mesh": str(DATA / "meshes" / mesh),
         "image": {"width": size, "height": size},
-        "camera": {"eye": [0.3, 0.4, 3.2], "target": [0, 0, 0], "fov_y": 40},
+        "camera": camera or {"eye": [0.3, 0.4, 3.2], "target": [0, 0, 0], "fov_y": 40},
         "light": {"direction": [-1.0, 1.0, 1.0]},
         "wash": {"pigment": "Cadmium Yellow"},
         "unlit": {"pigment": "Phthalo Green"},
@@ -27,6 +29,38 @@ def scene_file(tmp_path, name, mesh, size=64, **extra):
     path = tmp_path / f"{name}.json"
     path.write_text(json.dumps(data))
     return path
+
+
+@pytest.mark.parametrize(
+    "mesh, shading, backfaces",
+    [("sphere.ply", "per-pixel", "auto"), ("knot-1k.ply", "per-vertex", "auto"), ("knot-1k.ply", "per-pixel", "both"),
+     ("knot-1k.ply", "per-vertex", "both")],
+)
+def test_fit_shading_is_the_renderers(tmp_path, mesh, shading, backfaces):
+    # The fit shades stored geometry instead of calling render() each step; it must give render()'s pixels.
+    scene = diffwash.load_scene(scene_file(tmp_path, "s", mesh, shading=shading, backfaces=backfaces,
+                                           camera={"eye": [0.2, 0.3, 1.6], "target": [0, 0, 0], "fov_y": 60}))
+    vis = diffwash.rasterize(scene)
+    image = np.asarray(diffwash.render(scene, visibility=vis))
+    view = _prepare_view(scene, vis, image, np.float64)
+    got = np.asarray(jax.jit(_shade)(view, scene.params))[np.asarray(view.valid)]
+    px = np.asarray(vis.pixels)[np.asarray(view.valid)]
+    np.testing.assert_allclose(got, image.reshape(-1, 3)[px], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(view.target)[np.asarray(view.valid)], image.reshape(-1, 3)[px])
+
+
+def test_fit_glaze_has_the_glazes_value_and_derivative():
+    rng = np.random.default_rng(0)
+    p = diffwash.load_scene(DATA / "scenes" / "sphere.json").params
+    inputs = (rng.uniform(0, 2, 50), rng.uniform(0, 2, 50), p.wash.K, p.wash.S, p.unlit.K, p.unlit.S, p.paper)
+    argnums = tuple(range(7))
+    plain = jax.jit(jax.jacfwd(_glaze_terms, argnums=argnums))(*inputs)
+    for varying in ((True,) * 7, (True, True, False, False, False, False, True)):
+        np.testing.assert_allclose(_glaze(inputs, varying), _glaze_terms(*inputs), rtol=1e-14)
+        ours = jax.jit(jax.jacfwd(lambda *a, v=varying: _glaze(a, v), argnums=argnums))(*inputs)
+        for i, name in enumerate(_GLAZE_INPUTS):
+            if varying[i]:
+                np.testing.assert_allclose(ours[i], plain[i], rtol=1e-10, atol=1e-14, err_msg=name)
 
 
 def perturbed(params, names, factor, turn):

@@ -56,7 +56,7 @@ from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import read_image, read_json
 from .._raster import Visibility, rasterize
-from .._render import render
+from .. import shading
 from .._scene import Scene, load_scene, parse_scene, save_scene
 from ..pigments import Pigment
 from ..shading import Params
@@ -279,27 +279,137 @@ def _make_solver(name: str, rtol: float, atol: float):
     raise DiffwashError(f"unknown solver {name!r} (choose from {', '.join(SOLVERS)})", field="--solver")
 
 
+class _View(eqx.Module):
+    """One view's fixed geometry at its covered pixels, computed once (the geometry is not fitted).
+
+    Per-pixel shading keeps each pixel's normal `N` and direction to the eye `V`; per-vertex shading
+    keeps the vertices' normals and eye directions and each pixel's triangle and barycentrics. Padding
+    entries of the covered-pixel list have `valid = False`.
+    """
+
+    target: Any
+    valid: Any
+    N: Any = None
+    V: Any = None
+    vertex_N: Any = None
+    vertex_V: Any = None
+    faces: Any = None
+    tri: Any = None
+    bary: Any = None
+    front: Any = None
+    mode: str = eqx.field(static=True, default="per-pixel")
+    both: bool = eqx.field(static=True, default=False)
+
+
+def _prepare_view(scene: Scene, vis: Visibility, target: np.ndarray, dtype) -> _View:
+    """The renderer's geometry steps (`diffwash.render`: barycentrics, interpolation), done once."""
+    from .._barycentric import barycentrics
+    from .._interpolate import interpolate
+    from .._raster import clip_positions
+
+    mesh, cam = scene.mesh, scene.camera
+    f = lambda a: jnp.asarray(a, dtype)  # noqa: E731
+    vertices, normals, faces = f(mesh.vertices), f(mesh.normals), jnp.asarray(mesh.faces, jnp.int32)
+    camera = jax.tree.map(f, cam)
+    pixels = jnp.asarray(vis.pixels, jnp.int32)
+    n = scene.width * scene.height
+    valid = pixels < n
+    tgt = f(target.reshape(-1, 3))[jnp.where(valid, pixels, 0)]
+    clip = clip_positions(vertices, camera.view_projection(scene.width / scene.height))
+    tri = jnp.asarray(vis.pixel_tri, jnp.int32)
+    bary, front = barycentrics(clip, faces, tri, pixels, scene.width, scene.height)
+    eye = jnp.asarray(camera.eye, dtype)
+    both = not scene.cull_backfaces
+    if scene.shading == "per-pixel":
+        N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
+        if both:
+            N = jnp.where(front[:, None], N, -N)
+        V = shading.safe_normalize(eye - interpolate(vertices, faces, tri, bary))
+        return _View(target=tgt, valid=valid, N=N, V=V, mode="per-pixel", both=both)
+    return _View(target=tgt, valid=valid, vertex_N=normals, vertex_V=shading.safe_normalize(eye - vertices),
+                 faces=faces, tri=tri, bary=bary, front=front, mode="per-vertex", both=both)  # fmt: skip
+
+
+#: The inputs of `_glaze_terms`, in order.
+_GLAZE_INPUTS = ("wash", "unlit", "wash.K", "wash.S", "unlit.K", "unlit.S", "paper")
+
+
+def _glaze(inputs: tuple[Any, ...], varying: tuple[bool, ...]) -> Any:
+    r"""`shading.glaze`, arranged so that its derivative is cheap to push many tangents through.
+
+    The colour at a pixel depends on the two thicknesses there and, channel by channel, on the
+    pigments' K, S and the paper. So its Jacobian is a handful of per-pixel partial derivatives:
+    they are computed once per evaluation with `jax.jvp` of `shading.glaze` itself (one pass per
+    input that varies, a tangent of ones: channels do not mix), and the colour is written as
+
+    $$ c = c_0 + \sum_i \partial_i c_0\,(x_i - \bar x_i) $$
+
+    with $c_0$, $\partial_i c_0$ and $\bar x_i = x_i$ held constant (`stop_gradient`): the value is
+    exactly the glaze and so is the first derivative, while each of the fit's tangents costs a
+    multiply-add instead of a pass through Kubelka-Munk. (Second derivatives are not those of the
+    glaze; the least-squares solvers use first derivatives only.)
+
+    **Arguments:** `inputs` as `_GLAZE_INPUTS`; `varying` (static) says which of them depend on
+    the fitted parameters.
+    """
+    sg = jax.lax.stop_gradient
+    fixed = tuple(sg(jnp.asarray(a)) for a in inputs)
+    out = _glaze_terms(*fixed)
+    live = [i for i, v in enumerate(varying) if v]
+    if not live:
+        return out
+    for i in live:
+        # One jvp per varying input (separate passes: batching them with vmap is slower on the CPU).
+        f = lambda x, i=i: _glaze_terms(*fixed[:i], x, *fixed[i + 1 :])  # noqa: E731
+        partial = jax.jvp(f, (fixed[i],), (jnp.ones_like(fixed[i]),))[1]  # (P, 3)
+        d = jnp.asarray(inputs[i]) - fixed[i]  # 0, with the input's derivative
+        out = out + partial * (d[:, None] if i < 2 else d[None, :])
+    return out
+
+
+def _glaze_terms(wash, unlit, Kw, Sw, Ku, Su, paper):
+    return shading.glaze(Params(wash=Pigment(K=Kw, S=Sw), unlit=Pigment(K=Ku, S=Su), paper=paper), wash, unlit)
+
+
+def _shade(view: _View, params: Params, varying: tuple[bool, ...] = (True,) * 7) -> Any:
+    """Linear RGB at the view's covered pixels: `diffwash.render`'s shading, from the stored geometry."""
+    L = shading.safe_normalize(jnp.asarray(params.light))
+    if view.mode == "per-pixel":
+        wash, unlit = shading.thicknesses(view.N, L, view.V, params)
+    else:
+        from .._interpolate import interpolate
+
+        wash_v, unlit_v = shading.thicknesses(view.vertex_N, L, view.vertex_V, params)
+        wash = interpolate(wash_v, view.faces, view.tri, view.bary)
+        unlit = interpolate(unlit_v, view.faces, view.tri, view.bary)
+        if view.both:
+            wash_b, unlit_b = shading.thicknesses(-view.vertex_N, L, view.vertex_V, params)
+            wash = jnp.where(view.front, wash, interpolate(wash_b, view.faces, view.tri, view.bary))
+            unlit = jnp.where(view.front, unlit, interpolate(unlit_b, view.faces, view.tri, view.bary))
+    inputs = (wash, unlit, params.wash.K, params.wash.S, params.unlit.K, params.unlit.S, params.paper)
+    return _glaze(inputs, varying)
+
+
 class _Problem(eqx.Module):
     """Everything the residual function needs, as a pytree (one compile per shapes)."""
 
-    scenes: tuple[Scene, ...]
-    visibilities: tuple[Visibility, ...]
-    indices: tuple[Any, ...]
-    targets: tuple[Any, ...]
+    views: tuple[_View, ...]
     base: Params
     light_length: Any
     loss: str = eqx.field(static=True)
+    varying: tuple[bool, ...] = eqx.field(static=True, default=(True,) * 7)
 
 
 def _residuals(y: dict[str, Any], problem: _Problem) -> Any:
     params = _decode(y, problem.base, problem.light_length)
     parts = []
-    for scene, vis, idx, tgt in zip(problem.scenes, problem.visibilities, problem.indices, problem.targets):
-        img = render(scene, params, visibility=vis).reshape(-1, 3)[idx]
+    for view in problem.views:
+        img = _shade(view, params, problem.varying)
         if problem.loss == "lab":
-            parts.append((colorimetry.linear_srgb_to_lab(img) - colorimetry.linear_srgb_to_lab(tgt)).ravel())
+            d = colorimetry.linear_srgb_to_lab(img) - colorimetry.linear_srgb_to_lab(view.target)
         else:
-            parts.append((img - tgt).ravel())
+            d = img - view.target
+        parts.append(jnp.where(view.valid[:, None], d, 0).ravel())
     return jnp.concatenate(parts)
 
 
@@ -357,23 +467,19 @@ def fit_image(
     base = start if start is not None else scene_list[0].params
     dtype = jnp.zeros(()).dtype
 
-    vis, idx, tgts = [], [], []
+    views = []
     for i, (t, s) in enumerate(zip(target_list, scene_list)):
         linear = _read_target(t, s, i)
-        v = rasterize(s)
-        covered = np.flatnonzero(np.asarray(v.tri_id).reshape(-1) >= 0)
-        if len(covered) == 0:
+        vis = rasterize(s)
+        if not np.any(np.asarray(vis.tri_id) >= 0):
             raise DiffwashError(f"the object covers no pixel of view {i}: nothing to compare", file=s.path)
-        vis.append(v)
-        idx.append(jnp.asarray(covered, jnp.int32))
-        tgts.append(jnp.asarray(linear.reshape(-1, 3)[covered], dtype))
+        views.append(_prepare_view(s, vis, linear, dtype))
     light_length = float(np.linalg.norm(np.asarray(base.light, np.float64)))
     cast = lambda a: jnp.asarray(a, dtype) if np.asarray(a).dtype.kind == "f" else a  # noqa: E731
-    # Without their file names, scenes of the same shapes share one compiled solver step.
-    anonymous = [dataclasses.replace(jax.tree.map(cast, s), path=None) for s in scene_list]
-    problem = _Problem(scenes=tuple(anonymous), visibilities=tuple(vis),
-                       indices=tuple(idx), targets=tuple(tgts), base=jax.tree.map(cast, base),
-                       light_length=jnp.asarray(light_length, dtype), loss=loss)  # fmt: skip
+    thick = {"gain", "bias", "wash_reduction", "k_wash", "k_unlit", "k_specular", "shininess", "light"}
+    varying = (bool(thick & set(free)),) * 2 + tuple(n in free for n in _GLAZE_INPUTS[2:])
+    problem = _Problem(views=tuple(views), base=jax.tree.map(cast, base), light_length=jnp.asarray(light_length, dtype),
+                       loss=loss, varying=varying)  # fmt: skip
     y0 = {k: jnp.asarray(v, dtype) for k, v in _encode(base, free).items()}
     tol = 1e-6 if dtype == jnp.float64 else 1e-4
     opt = _make_solver(solver, rtol if rtol is not None else tol, atol if atol is not None else tol)
@@ -383,9 +489,10 @@ def fit_image(
     params = _decode(y, base, light_length)
     r = np.asarray(_residual_jit(y, problem), np.float64)
     rms, off = [], 0
-    for tgt in tgts:
-        n = tgt.size
-        rms.append(float(np.sqrt(np.mean(r[off : off + n] ** 2))))
+    for view in views:
+        n = view.target.size
+        used = 3 * int(np.sum(np.asarray(view.valid)))
+        rms.append(float(np.sqrt(np.sum(r[off : off + n] ** 2) / used)))
         off += n
     fitted = {n: np.asarray(_get(params, n)) for n in names}
     started = {n: np.asarray(_get(base, n)) for n in names}
@@ -446,20 +553,35 @@ def _iterate(solver, y0, problem, max_steps: int, progress) -> tuple[Any, list[f
     result = optx.RESULTS.successful
     steps = 0
     minimiser = not _is_least_squares(solver)
+    stalled = 0
+    n_all = sum(int(v.target.size) for v in problem.views)
+    n_used = sum(3 * int(np.sum(np.asarray(v.valid))) for v in problem.views)  # without the padding
     for steps in range(1, max_steps + 1):
         y, state, done, result, loss = _step(solver, y, problem, state)
         value = float(loss)
         if minimiser:  # 0.5 sum r^2 -> root mean square
-            n = sum(int(t.size) for t in problem.targets)
-            value = math.sqrt(max(2 * value / n, 0.0))
+            value = math.sqrt(max(2 * value / n_used, 0.0))
+        else:
+            value = value * math.sqrt(n_all / n_used)
+        # Steps that no longer lower the loss at all, while the solver shrinks its trust region:
+        # the loss has reached its floor (the fit's misfit, or float rounding), so more steps only
+        # chase noise.
+        stalled = stalled + 1 if history and abs(value - history[-1]) <= _STALL * history[-1] else 0
         history.append(value)
         if report is not None:
             report(steps, value)
         if bool(done):
             break
+        if stalled >= 3 and not minimiser:
+            result = optx.RESULTS.successful
+            break
     else:
         result = f"did not converge in {max_steps} steps"
     return y, history, steps, result
+
+
+#: Relative change of the loss below which a step counts as not lowering it.
+_STALL = 1e-6
 
 
 def _print_progress(step: int, loss: float) -> None:

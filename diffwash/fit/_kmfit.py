@@ -245,19 +245,11 @@ def _solve_one(model: FitModel, max_steps: int, rows: Rows, theta0: dict[str, Ar
     return sol.value, jnp.sum(r * r), sol.stats["num_steps"], sol.result == optx.RESULTS.successful, J, fitted
 
 
-def _start_loss(model: FitModel, rows: Rows, theta: dict[str, Array]) -> Array:
-    r = residuals(theta, (model, rows))
-    return jnp.sum(jnp.where(jnp.isfinite(r), r * r, jnp.inf))
-
-
 @functools.lru_cache(maxsize=None)
 def _compiled(model: FitModel, max_steps: int, batched: bool):
-    """The jitted fit: pick each pigment's best start, then Levenberg-Marquardt from it."""
+    """The jitted fit from one starting point (batched over pigments with `jax.vmap`)."""
 
-    def one(rows: Rows, starts: dict[str, Array]):
-        losses = jax.vmap(_start_loss, in_axes=(None, None, 0))(model, rows, starts)
-        best = jnp.argmin(losses)
-        theta0 = jax.tree.map(lambda a: a[best], starts)
+    def one(rows: Rows, theta0: dict[str, Array]):
         return _solve_one(model, max_steps, rows, theta0)
 
     fn = jax.vmap(one) if batched else one
@@ -352,8 +344,9 @@ class BatchFit(eqx.Module):
 def fit_rows(model: FitModel, rows: Rows, starts: dict[str, np.ndarray], *, max_steps: int = 1000) -> BatchFit:
     """Fit a batch of pigments to their rows with Levenberg-Marquardt, all at once.
 
-    Each pigment starts from the best (lowest loss) of its starting points;
-    pigments are batched with `jax.vmap` (one pigment runs unbatched).
+    Levenberg-Marquardt runs from each starting point and each pigment keeps
+    its best (lowest loss) solution; pigments are batched with `jax.vmap` (one
+    pigment runs unbatched).
 
     **Arguments:**
 
@@ -373,11 +366,23 @@ def fit_rows(model: FitModel, rows: Rows, starts: dict[str, np.ndarray], *, max_
     rows = jax.tree.map(lambda a: jnp.asarray(a, dtype) if np.asarray(a).dtype.kind == "f" else jnp.asarray(a), rows)
     starts = {k: jnp.asarray(v, dtype) for k, v in starts.items()}
     P = rows.amount.shape[0]
-    if P == 1:
-        out = _compiled(model, max_steps, False)(jax.tree.map(lambda a: a[0], rows), {k: v[0] for k, v in starts.items()})
-        out = jax.tree.map(lambda a: jnp.asarray(a)[None], out)
-    else:
-        out = _compiled(model, max_steps, True)(rows, starts)
+    n_starts = next(iter(starts.values())).shape[1]
+    # Levenberg-Marquardt from every start (one compiled program, called once per start), keeping
+    # each pigment's best: a fit from a single start can stop in a poor local minimum, or on a
+    # plateau where float32 steps look converged.
+    fn = _compiled(model, max_steps, P > 1)
+    runs = []
+    for s in range(n_starts):
+        theta0 = {k: v[:, s] for k, v in starts.items()}
+        if P == 1:
+            out = fn(jax.tree.map(lambda a: a[0], rows), {k: v[0] for k, v in theta0.items()})
+            out = jax.tree.map(lambda a: jnp.asarray(a)[None], out)
+        else:
+            out = fn(rows, theta0)
+        runs.append(out)
+    losses = np.stack([np.asarray(r[1]) for r in runs])  # (starts, P)
+    best = np.argmin(np.where(np.isfinite(losses), losses, np.inf), axis=0)
+    out = jax.tree.map(lambda *a: np.stack([np.asarray(x) for x in a])[best, np.arange(P)], *runs)
     theta, loss, steps, ok, J, fitted = out
     names = tuple(sorted(theta))  # the order in which the Jacobian's columns are flattened
     return BatchFit(theta=theta, loss=loss, steps=steps, converged=ok, jacobian=J, fitted=fitted, param_names=names)

@@ -29,10 +29,14 @@ def add_arguments(p) -> None:
     p.add_argument("--fit", required=True, metavar="LIST",
                    help=f"comma-separated parameters to fit: {', '.join(FITTABLE)}")  # fmt: skip
     p.add_argument("-o", "--output", required=True, metavar="JSON", help="the fitted scene file to write")
-    p.add_argument("--loss", choices=LOSSES, default="linear", help="compare in linear RGB or CIELAB (default: %(default)s)")
-    p.add_argument("--solver", choices=SOLVERS, default="lm", help="optimistix solver (default: %(default)s, Levenberg-Marquardt)")
-    p.add_argument("--max-steps", type=int, default=100, metavar="N", help="solver steps at most (default: %(default)s)")
-    p.add_argument("--report", metavar="PNG", help="also write a picture: target, start, fitted, difference, loss curve")
+    p.add_argument("--loss", choices=LOSSES, default="linear",
+                   help="compare in linear RGB or CIELAB (default: %(default)s)")
+    p.add_argument("--solver", choices=SOLVERS, default="lm",
+                   help="optimistix solver (default: %(default)s, Levenberg-Marquardt)")
+    p.add_argument("--max-steps", type=int, default=100, metavar="N",
+                   help="solver steps at most (default: %(default)s)")
+    p.add_argument("--report", metavar="PNG",
+                   help="also write a picture: target, start, fitted, difference, loss curve")  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="do not print the loss at each step")
     p.add_argument("--allow-unconverged", action="store_true", help="write the result even if the fit did not converge")
 
@@ -80,8 +84,8 @@ def run(args) -> int:
         print(f"  {n:<15} {fmt(fit.start[n]):>28} {fmt(fit.fitted[n]):>28}{held}")
     rms = ", ".join(f"{r:.3g}" for r in fit.rms)
     unit = "linear reflectance" if args.loss == "linear" else "CIELAB units"
-    print(f"  {'converged' if fit.converged else 'NOT converged'} after {fit.iterations} steps ({fit.message}); "
-          f"rms residual per view: {rms} ({unit})")  # fmt: skip
+    status = "converged" if fit.converged else f"NOT converged ({fit.message})"
+    print(f"  {status} after {fit.iterations} steps; rms residual per view: {rms} ({unit})")
     if not fit.converged and not args.allow_unconverged:
         raise FailureError(f"the fit did not converge ({fit.message}); nothing was written (use --allow-unconverged "
                            f"to write it anyway, or raise --max-steps)")  # fmt: skip

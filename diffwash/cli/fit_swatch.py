@@ -19,7 +19,8 @@ USES_JAX = True
 
 
 def add_arguments(p) -> None:
-    p.add_argument("photos", nargs="*", metavar="PHOTO", help="photo(s) of one pigment's swatch card (PNG 8/16 bit, JPEG)")
+    p.add_argument("photos", nargs="*", metavar="PHOTO",
+                   help="photo(s) of one pigment's swatch card (PNG 8/16 bit, JPEG)")  # fmt: skip
     p.add_argument("--layout", action="append", metavar="LAYOUT.json",
                    help="where the paper, black band and patches are in the photo (one per photo)")  # fmt: skip
     p.add_argument("--table", metavar="CSV", help="fit every pigment of a measurement table instead of a photo")
@@ -28,11 +29,14 @@ def add_arguments(p) -> None:
     p.add_argument("--report", metavar="PNG", help="also write a picture of observed vs fitted colours")
     p.add_argument("--linear", action="store_true", help="the table's r, g, b are linear reflectance, not sRGB")
     p.add_argument("--plain", action="store_true",
-                   help="table: the plain fit (thickness = amount, sRGB residuals, no prior) instead of the default model")  # fmt: skip
-    p.add_argument("--thickness", choices=("power", "linear"), help="table: thickness = amount**gamma (power, default) or amount")
+                   help="table: the plain fit (thickness = amount, sRGB residuals, no prior) instead of the model")
+    p.add_argument("--thickness", choices=("power", "linear"),
+                   help="table: thickness = amount**gamma (power, default) or amount")  # fmt: skip
     p.add_argument("--loss", choices=("de2000", "lab", "srgb"), help="residuals (default: de2000)")
-    p.add_argument("--surface", choices=("none", "saunderson"), help="table: Saunderson's surface correction (default: none)")
-    p.add_argument("--max-steps", type=int, default=1000, metavar="N", help="Levenberg-Marquardt steps at most (default: %(default)s)")
+    p.add_argument("--surface", choices=("none", "saunderson"),
+                   help="table: Saunderson's surface correction (default: none)")
+    p.add_argument("--max-steps", type=int, default=1000, metavar="N",
+                   help="Levenberg-Marquardt steps at most (default: %(default)s)")  # fmt: skip
     p.add_argument("--allow-unconverged", action="store_true", help="write the result even if the fit did not converge")
 
 
@@ -99,7 +103,9 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
     from ..fit._swatch import SWATCH_MODEL, FitModel
 
     t0 = time.perf_counter()
-    model = SWATCH_MODEL if args.loss is None else FitModel(thickness="linear", loss=args.loss, prior=SWATCH_MODEL.prior)
+    model = SWATCH_MODEL
+    if args.loss is not None:
+        model = FitModel(thickness="linear", loss=args.loss, prior=SWATCH_MODEL.prior)
     fit = fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps)
     p = fit.pigment
     print(f"{p.name}: {len(fit.patches)} patches from {len(args.photos)} photo{'s' if len(args.photos) > 1 else ''}")

@@ -20,7 +20,8 @@ def add_arguments(p) -> None:
     p.add_argument("pigment", metavar="PIGMENT", help="a pigment name from the library, or a pigment file")
     p.add_argument("-o", "--output", required=True, metavar="PHOTO", help="the photo to write: .jpg, .jpeg or .png")
     p.add_argument("--layout", metavar="JSON", help="where to write the layout (default: beside the photo, .json)")
-    p.add_argument("--coats", default="1,2,3,4", metavar="LIST", help="coat counts of the patches (default: %(default)s)")
+    p.add_argument("--coats", default="1,2,3,4", metavar="LIST",
+                   help="coat counts of the patches (default: %(default)s)")  # fmt: skip
     p.add_argument("--no-black", action="store_true", help="no black ink band (patches over paper only)")
     p.add_argument("--ideal", action="store_true", help="a perfect camera: no falloff, noise, blur or grain")
     p.add_argument("--bits", type=int, choices=(8, 16), default=8, help="PNG bits per channel (default: %(default)s)")
@@ -44,10 +45,9 @@ def run(args) -> int:
     if not coats or any(not (0 < c < 1e3) for c in coats):
         raise DiffwashError(f"must be numbers of coats > 0, got {args.coats!r}", field="--coats")
     pigment = pigments.load(args.pigment)
-    card = make_swatch_card(pigment, coats=coats, black=not args.no_black, effects=IDEAL if args.ideal else CameraEffects(),
-                            seed=args.seed)  # fmt: skip
+    effects = IDEAL if args.ideal else CameraEffects()
+    card = make_swatch_card(pigment, coats=coats, black=not args.no_black, effects=effects, seed=args.seed)
     layout = Path(args.layout) if args.layout else out.with_suffix(".json")
-    save_swatch_card(card, out, layout, bits=args.bits)
     card.layout["name"] = pigment.name
     save_swatch_card(card, out, layout, bits=args.bits)
     h, w = card.photo.shape[:2]

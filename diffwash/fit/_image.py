@@ -211,7 +211,8 @@ class ImageFit:
     def to_dict(self) -> dict[str, Any]:
         """Diagnostics, JSON-ready."""
         lst = lambda v: np.asarray(v, np.float64).round(8).tolist()  # noqa: E731
-        return {"fitted": {k: lst(v) for k, v in self.fitted.items()}, "start": {k: lst(v) for k, v in self.start.items()},
+        return {"fitted": {k: lst(v) for k, v in self.fitted.items()},
+                "start": {k: lst(v) for k, v in self.start.items()},
                 "held_by_gauge": list(self.held), "notes": self.notes, "loss": self.loss, "solver": self.solver,
                 "iterations": self.iterations, "converged": self.converged, "message": self.message,
                 "rms_per_view": [float(r) for r in self.rms]}  # fmt: skip

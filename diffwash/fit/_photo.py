@@ -292,7 +292,8 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
     clipped = np.mean((raw >= hi_level) | (raw <= lo_level), axis=0)
     if np.any(clipped > 0.01):
         c = int(np.argmax(clipped))
-        kind = "over-exposed (saturated)" if np.mean(raw[:, c] >= hi_level) >= np.mean(raw[:, c] <= lo_level) else "black"
+        bright = np.mean(raw[:, c] >= hi_level) >= np.mean(raw[:, c] <= lo_level)
+        kind = "over-exposed (saturated)" if bright else "black"
         raise _fail(f"the paper box is {kind}: {100 * clipped[c]:.0f}% of its pixels are clipped in "
                     f"{'red green blue'.split()[c]}, so exposure and white balance cannot be calibrated from it",
                     file, "paper.box")  # fmt: skip
@@ -350,7 +351,8 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
     flat = paper_lin / np.exp(_poly(pxs.ravel(), pys.ravel(), W, H, degree) @ coef)[:, None] * norm
     gain = _trimmed_mean(flat) / layout.paper_reflectance
     return Calibration(gain=gain, coefficients=coef, degree=degree, pixels=int(use.sum()),
-                       light_range=(float(light.min()), float(light.max())), size=(W, H), norm=norm, notes=notes)  # fmt: skip
+                       light_range=(float(light.min()), float(light.max())), size=(W, H), norm=norm,
+                       notes=notes)  # fmt: skip
 
 
 @dataclass(frozen=True)

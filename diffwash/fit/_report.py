@@ -34,7 +34,9 @@ def _plt():
     return plt
 
 
-def _pairs(ax, groups: Sequence[tuple[str, Sequence[tuple[str, Any, Any, float]]]], title: str, step: float = 1.6) -> None:
+def _pairs(
+    ax, groups: Sequence[tuple[str, Sequence[tuple[str, Any, Any, float]]]], title: str, step: float = 1.6
+) -> None:
     """Draw rows of observed|fitted squares: groups = [(row label, [(caption, obs, fit, dE), ...])]."""
     from matplotlib.patches import Rectangle
 

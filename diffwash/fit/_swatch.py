@@ -125,7 +125,8 @@ class SwatchFit:
                 raise DiffwashError(f"unknown ground {ground!r} (must be 'paper' or 'black')")
         else:
             g = np.asarray(ground, np.float64)
-        theta = {"log_K": np.log(np.maximum(self.pigment.K, 1e-300)), "log_S": np.log(np.maximum(self.pigment.S, 1e-300))}
+        theta = {"log_K": np.log(np.maximum(self.pigment.K, 1e-300)),
+                 "log_S": np.log(np.maximum(self.pigment.S, 1e-300))}  # fmt: skip
         return np.asarray(predict_jit(self.model, theta, coats, np.broadcast_to(g, coats.shape + (3,))), np.float64)
 
     def to_dict(self) -> dict[str, Any]:

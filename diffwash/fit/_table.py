@@ -197,7 +197,8 @@ def _make_table(pig, amt, gnd, unit, *, linear, path=None, lines=None) -> Measur
             continue
         bad = rows & (amt != 0)
         if np.any(bad):
-            raise _fail(f"a {g!r} row gives the bare ground and must have amount 0", path, f"line {lines[bad][0]}: amount")
+            raise _fail(f"a {g!r} row gives the bare ground and must have amount 0", path,
+                        f"line {lines[bad][0]}: amount")  # fmt: skip
         wrong = rows & (gnd != g)
         if np.any(wrong):
             raise _fail(f"the {g!r} row must have ground {g}", path, f"line {lines[wrong][0]}: ground")
@@ -406,7 +407,9 @@ def _pack(table: MeasurementTable, model: FitModel) -> tuple[Rows, dict[str, np.
     return rows, stacked, scale
 
 
-def _start(table: MeasurementTable, ix: np.ndarray, g_all: np.ndarray, model: FitModel, scale: float) -> dict[str, np.ndarray]:
+def _start(
+    table: MeasurementTable, ix: np.ndarray, g_all: np.ndarray, model: FitModel, scale: float
+) -> dict[str, np.ndarray]:
     """Starting points for one pigment: Curtis's inversion if it was measured over both grounds."""
     amount, ground, rgb = table.amount[ix] / scale, table.ground[ix], table.rgb[ix]
     estimates = []

@@ -197,23 +197,30 @@ def effective(pred: Array, obs: Array, lo: Array, hi: Array) -> Array:
     return jnp.where(lo, jnp.maximum(pred, obs), jnp.where(hi, jnp.minimum(pred, obs), pred))
 
 
-def row_errors(model: FitModel, pred: Array, obs: Array, lo: Array, hi: Array) -> Array:
-    """Residuals per row, shape (M, 3): their squares sum to CIEDE2000^2 with `de2000`."""
+def row_errors(model: FitModel, pred: Array, obs: Array, lo: Array, hi: Array, obs_lab: Array | None = None) -> Array:
+    """Residuals per row, shape (M, 3): their squares sum to CIEDE2000^2 with `de2000`.
+
+    `obs_lab`, the observations in CIELAB, may be given precomputed.
+    """
     eff = effective(pred, obs, lo, hi)
+    if model.loss == "srgb":
+        return 100 * (colorimetry.srgb_encode(eff) - colorimetry.srgb_encode(obs))
+    lab_o = colorimetry.linear_srgb_to_lab(obs) if obs_lab is None else obs_lab
+    lab_p = colorimetry.linear_srgb_to_lab(eff)
     if model.loss == "de2000":
-        lab_p = colorimetry.linear_srgb_to_lab(eff)
-        lab_o = colorimetry.linear_srgb_to_lab(obs)
         return colorimetry.delta_e_2000_residuals(lab_p, lab_o)
-    if model.loss == "lab":
-        return colorimetry.linear_srgb_to_lab(eff) - colorimetry.linear_srgb_to_lab(obs)
-    return 100 * (colorimetry.srgb_encode(eff) - colorimetry.srgb_encode(obs))
+    return lab_p - lab_o
 
 
-def residuals(theta: dict[str, Array], args: tuple[FitModel, Rows]) -> Array:
-    """The least-squares residual vector of one pigment (rows, then the prior)."""
-    model, rows = args
+def residuals(theta: dict[str, Array], args: tuple) -> Array:
+    """The least-squares residual vector of one pigment (rows, then the prior).
+
+    `args` is `(model, rows)`, or `(model, rows, obs_lab)` with the observations in CIELAB.
+    """
+    model, rows = args[0], args[1]
+    obs_lab = args[2] if len(args) > 2 else None
     pred = predict(model, theta, rows.amount, rows.ground)
-    r = row_errors(model, pred, rows.rgb, rows.lo, rows.hi) * jnp.sqrt(rows.weight)[:, None]
+    r = row_errors(model, pred, rows.rgb, rows.lo, rows.hi, obs_lab) * jnp.sqrt(rows.weight)[:, None]
     parts = [r.ravel()]
     if model.prior > 0:
         for key in ("log_K", "log_S"):
@@ -236,7 +243,9 @@ def _solve_one(model: FitModel, max_steps: int, rows: Rows, theta0: dict[str, Ar
     """One pigment from one start: the solution, its loss, steps, convergence, Jacobian, prediction."""
     tol = _tolerance(rows.rgb.dtype)
     solver = optx.LevenbergMarquardt(rtol=tol, atol=tol)
-    sol = optx.least_squares(residuals, solver, theta0, args=(model, rows), max_steps=max_steps, throw=False)
+    # The observations' CIELAB once, outside the solver (which traces the residuals several times).
+    args = (model, rows, colorimetry.linear_srgb_to_lab(rows.rgb))
+    sol = optx.least_squares(residuals, solver, theta0, args=args, max_steps=max_steps, throw=False)
     # The solver's own residuals and Jacobian at the accepted point: no second trace of the model.
     info = sol.state.f_info
     r = info.residual

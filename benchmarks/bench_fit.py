@@ -10,7 +10,8 @@ Prints Markdown tables:
    Levenberg-Marquardt (`scipy.optimize.least_squares(method="lm")`), and for the image fit a single
    render of the scene (the unit a fit's cost is counted in).
    - swatch fit: `diffwash.fit.fit_swatches` on a generated JPEG swatch card (4 coat counts over paper and
-     black, 360x264 px), from reading the photo to the diagnostics (target <= 0.5 s warm);
+     black, 360x264 px), from reading the photo to the diagnostics (target <= 0.5 s warm), with the
+     default CIE94 residuals and with CIEDE2000 residuals;
    - image fit: `diffwash.fit.fit_image` on the sphere scene at 256x256 px, 10 parameters (gain, bias,
      k_wash, k_unlit, shininess, light (2 angles), paper (3)), from a start 20% off (target <= 2 s warm);
    - table fit: `diffwash.fit.fit_table` on the NTU training amounts (7 paints at once).
@@ -98,8 +99,12 @@ def bench_swatch(folder: Path, repeats: int) -> list[tuple]:
     save_swatch_card(card, folder / "card.jpg")
     layout = json.loads((folder / "card.json").read_text())
     warm, comp, fit = timed(lambda: fit_swatches(folder / "card.jpg", layout), repeats)
-    rows = [("swatch fit (photo to pigment)", warm, comp, peak_rss_mb(), f"{fit.iterations} LM steps, "
-             f"mean dE {fit.mean_delta_e:.2f}")]  # fmt: skip
+    rows = [("swatch fit (photo to pigment), CIE94 residuals", warm, comp, peak_rss_mb(),
+             f"{fit.iterations} LM steps, mean dE00 {fit.mean_delta_e:.2f}")]  # fmt: skip
+    de = FitModel(thickness="linear", loss="de2000")
+    w2, c2, f2 = timed(lambda: fit_swatches(folder / "card.jpg", layout, model=de), repeats)
+    rows.append(("swatch fit, CIEDE2000 residuals", w2, c2, peak_rss_mb(),
+                 f"{f2.iterations} LM steps, mean dE00 {f2.mean_delta_e:.2f}"))  # fmt: skip
     # Peer: MINPACK on the same residuals (rows from this fit's patches).
     from diffwash.fit._kmfit import Rows
 
@@ -186,6 +191,7 @@ def bench_cli(folder: Path) -> list[tuple]:
     write_png(folder / "target.png", np.asarray(colorimetry.srgb_encode(np.clip(img, 0, 1))), bits=16)
     (folder / "start.json").write_text(json.dumps({**scene, "gain": 0.5, "k_unlit": 1.2, "shininess": 15}))
     runs = [
+        ("diffwash fit-swatch PHOTO --layout (cold)", ["fit-swatch", "cli.jpg", "--layout", "cli.json", "-o", "p.json"]),
         ("diffwash fit-swatch PHOTO --layout --report (cold)",
          ["fit-swatch", "cli.jpg", "--layout", "cli.json", "-o", "p.json", "--report", "r.png"]),
         ("diffwash fit-swatch --table (cold)", ["fit-swatch", "--table", "ntu.csv", "-o", "lib.json"]),
@@ -196,7 +202,7 @@ def bench_cli(folder: Path) -> list[tuple]:
     for label, args in runs:
         cache = tempfile.mkdtemp(prefix="diffwash-cache-")
         rows.append((label, cli_run(args, folder, cache)))
-        if args[1] == "cli.jpg":
+        if args[1] == "cli.jpg" and "--report" in args:
             rows.append(("diffwash fit-swatch PHOTO --layout --report (cache filled)", cli_run(args, folder, cache)))
     return rows
 
@@ -207,6 +213,7 @@ def bench_ntu() -> tuple[list[str], list[tuple]]:
         ("plain LM (thickness = amount, sRGB residuals)", PLAIN),
         ("diffwash model (power-law thickness, CIEDE2000 residuals, prior)", FitModel()),
         ("  without the power law", FitModel(thickness="linear")),
+        ("  with CIE94 instead of CIEDE2000 residuals (the photo fit's default)", FitModel(loss="cie94")),
         ("  with CIELAB instead of CIEDE2000 residuals", FitModel(loss="lab")),
         ("  with sRGB residuals", FitModel(loss="srgb")),
         ("  without the prior", FitModel(prior=0.0)),

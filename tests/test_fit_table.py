@@ -41,6 +41,21 @@ def test_delta_e_residuals_square_to_ciede2000(lab1, lab2):
     assert float(jnp.sum(r * r)) == pytest.approx(float(de) ** 2, rel=1e-9, abs=1e-9)
 
 
+@pytest.mark.parametrize("textiles", [False, True])
+def test_cie94_residuals_match_colour_science(textiles):
+    import colour
+
+    rng = np.random.default_rng(7)
+    a = np.c_[rng.uniform(0, 100, 2000), rng.uniform(-100, 100, (2000, 2))]
+    for b in (a + rng.normal(0, 4, a.shape), np.c_[rng.uniform(0, 100, 2000), rng.uniform(-100, 100, (2000, 2))]):
+        r = np.asarray(colorimetry.delta_e_1994_residuals(a, b, textiles=textiles))
+        want = colour.delta_E(a, b, method="CIE 1994", textiles=textiles)
+        np.testing.assert_allclose(np.sqrt(np.sum(r * r, axis=-1)), want, rtol=1e-10, atol=1e-10)
+    lab = jnp.asarray([50.0, 20.0, -10.0])
+    J = jax.jacfwd(lambda x: colorimetry.delta_e_1994_residuals(lab, x))(lab)
+    assert np.all(np.isfinite(J)) and np.linalg.matrix_rank(np.asarray(J)) == 3
+
+
 def test_delta_e_residuals_are_smooth_where_colours_meet():
     # At equal colours CIEDE2000 itself has a kink (a square root); its residuals have a finite, non-zero Jacobian.
     lab = jnp.asarray([50.0, 20.0, -10.0])

@@ -32,7 +32,8 @@ def add_arguments(p) -> None:
                    help="table: the plain fit (thickness = amount, sRGB residuals, no prior) instead of the model")
     p.add_argument("--thickness", choices=("power", "linear"),
                    help="table: thickness = amount**gamma (power, default) or amount")  # fmt: skip
-    p.add_argument("--loss", choices=("de2000", "lab", "srgb"), help="residuals (default: de2000)")
+    p.add_argument("--loss", choices=("de2000", "cie94", "lab", "srgb"),
+                   help="residuals (default: cie94 for photos, de2000 for tables)")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
     p.add_argument("--max-steps", type=int, default=1000, metavar="N",

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import math
 import os
 import time
@@ -304,24 +305,27 @@ class _View(eqx.Module):
 
 def _prepare_view(scene: Scene, vis: Visibility, target: np.ndarray, dtype) -> _View:
     """The renderer's geometry steps (`diffwash.render`: barycentrics, interpolation), done once."""
+    f = lambda a: jnp.asarray(np.asarray(a, dtype))  # noqa: E731
+    mesh = scene.mesh
+    camera = jax.tree.map(f, scene.camera)
+    return _geometry(f(mesh.vertices), f(mesh.normals), jnp.asarray(np.asarray(mesh.faces, np.int32)), camera,
+                     jnp.asarray(np.asarray(vis.pixels, np.int32)), jnp.asarray(np.asarray(vis.pixel_tri, np.int32)),
+                     f(np.asarray(target).reshape(-1, 3)), width=scene.width, height=scene.height, mode=scene.shading,
+                     both=not scene.cull_backfaces)  # fmt: skip
+
+
+@functools.partial(jax.jit, static_argnames=("width", "height", "mode", "both"))
+def _geometry(vertices, normals, faces, camera, pixels, tri, target, *, width, height, mode, both) -> _View:
     from .._barycentric import barycentrics
     from .._interpolate import interpolate
     from .._raster import clip_positions
 
-    mesh, cam = scene.mesh, scene.camera
-    f = lambda a: jnp.asarray(a, dtype)  # noqa: E731
-    vertices, normals, faces = f(mesh.vertices), f(mesh.normals), jnp.asarray(mesh.faces, jnp.int32)
-    camera = jax.tree.map(f, cam)
-    pixels = jnp.asarray(vis.pixels, jnp.int32)
-    n = scene.width * scene.height
-    valid = pixels < n
-    tgt = f(target.reshape(-1, 3))[jnp.where(valid, pixels, 0)]
-    clip = clip_positions(vertices, camera.view_projection(scene.width / scene.height))
-    tri = jnp.asarray(vis.pixel_tri, jnp.int32)
-    bary, front = barycentrics(clip, faces, tri, pixels, scene.width, scene.height)
-    eye = jnp.asarray(camera.eye, dtype)
-    both = not scene.cull_backfaces
-    if scene.shading == "per-pixel":
+    valid = pixels < width * height
+    tgt = target[jnp.where(valid, pixels, 0)]
+    clip = clip_positions(vertices, camera.view_projection(width / height))
+    bary, front = barycentrics(clip, faces, tri, pixels, width, height)
+    eye = camera.eye
+    if mode == "per-pixel":
         N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
         if both:
             N = jnp.where(front[:, None], N, -N)
@@ -484,11 +488,11 @@ def fit_image(
     y0 = {k: jnp.asarray(v, dtype) for k, v in _encode(base, free).items()}
     tol = 1e-6 if dtype == jnp.float64 else 1e-4
     opt = _make_solver(solver, rtol if rtol is not None else tol, atol if atol is not None else tol)
-    y, history, steps, result = _iterate(opt, y0, problem, max_steps, progress)
+    y, history, steps, result, r = _iterate(opt, y0, problem, max_steps, progress)
     converged = not isinstance(result, str) and bool(result == optx.RESULTS.successful)
     message = "converged" if converged else (result if isinstance(result, str) else optx.RESULTS[result])
-    params = _decode(y, base, light_length)
-    r = np.asarray(_residual_jit(y, problem), np.float64)
+    params = _decode_jit(y, base, light_length)
+    r = np.asarray(_residual_jit(y, problem) if r is None else r, np.float64)
     rms, off = [], 0
     for view in views:
         n = view.target.size
@@ -505,6 +509,7 @@ def fit_image(
 
 
 _residual_jit = jax.jit(_residuals)
+_decode_jit = eqx.filter_jit(_decode)
 
 
 def _is_least_squares(solver: Any) -> bool:
@@ -545,7 +550,7 @@ def _state_loss(state: Any) -> Any:
     return jnp.asarray(info.f)
 
 
-def _iterate(solver, y0, problem, max_steps: int, progress) -> tuple[Any, list[float], int, Any]:
+def _iterate(solver, y0, problem, max_steps: int, progress) -> tuple[Any, list[float], int, Any, Any]:
     """Step the solver by hand so that each step's loss can be shown."""
     state = _init(solver, y0, problem)
     y = y0
@@ -578,7 +583,9 @@ def _iterate(solver, y0, problem, max_steps: int, progress) -> tuple[Any, list[f
             break
     else:
         result = f"did not converge in {max_steps} steps"
-    return y, history, steps, result
+    # The residuals at the solution, from the solver's own state (least-squares solvers keep them).
+    residual = getattr(state.f_info, "residual", None) if not minimiser else None
+    return y, history, steps, result, residual
 
 
 #: Relative change of the loss below which a step counts as not lowering it.

@@ -1,13 +1,9 @@
-"""Fit scene parameters (K, S, gain, bias, thickness constants, shininess, light...) to target images.
-
-  diffwash fit-image TARGET.png [TARGET2.png ...] --scene SCENE.json --fit gain,bias,k_wash -o FITTED.json
-
-Several views: one --scene per target, or one scene and --cameras CAMERAS.json
-(a list of camera objects, one per target). The fitted scene file is what
-`diffwash render`, `bake` and `export` read. The Python equivalent is
-`diffwash.fit.fit_image(TARGETS, SCENES, FIT)`. Parameters, gauges and losses
-are described in docs/fitting.md. A fit that does not converge writes nothing
-and exits with status 1, unless --allow-unconverged.
+"""Fit named scene parameters (pigment K and S, gain, bias, thickness constants, shininess, light, paper) to one or
+more target images with an optimistix solver, and write the fitted scene file, which diffwash render, bake and
+export read. Several views: one --scene per target, or one scene and --cameras CAMERAS.json (a list of camera
+objects, one per target). Parameters, gauges and losses are described in docs/fitting.md; the Python equivalent
+is diffwash.fit.fit_image(TARGETS, SCENES, FIT). A fit that does not converge writes nothing and exits with
+status 1, unless --allow-unconverged.
 """
 
 from __future__ import annotations

@@ -1,12 +1,8 @@
-"""Fit a pigment's K and S to a photo of its swatch card, or every pigment of a measurement table.
-
-  diffwash fit-swatch PHOTO --layout LAYOUT.json -o PIGMENT.json [--name NAME] [--report report.png]
-  diffwash fit-swatch --table MEASUREMENTS.csv -o LIBRARY.json [--linear] [--report report.png]
-
-The layout and CSV formats are in docs/fitting.md. The Python equivalents are
-`diffwash.fit.fit_swatches(PHOTO, LAYOUT)` and `diffwash.fit.fit_table(CSV)`.
-A fit that does not converge writes nothing and exits with status 1, unless
---allow-unconverged.
+"""Fit a pigment's K and S (per coat) to photos of its swatch card (PHOTO --layout LAYOUT.json), or every pigment of
+a table of measured colours at once (--table MEASUREMENTS.csv), and write a pigment file (or library) with the
+fit's diagnostics. The layout and CSV formats are in docs/fitting.md; the Python equivalents are
+diffwash.fit.fit_swatches(PHOTO, LAYOUT) and diffwash.fit.fit_table(CSV). A fit that does not converge writes
+nothing and exits with status 1, unless --allow-unconverged.
 """
 
 from __future__ import annotations

@@ -1,10 +1,7 @@
-"""Make a synthetic photo of a pigment's swatch card and its layout file (what fit-swatch reads).
-
-  diffwash swatch-card "Cadmium Red" -o card.jpg [--coats 1,2,3,4] [--no-black] [--seed N] [--ideal]
-
-The photo has the camera's faults (exposure and white-balance error, vignetting
-and uneven light, paper grain, noise, blur, JPEG); the layout goes beside it
-(card.json). The Python equivalent is `diffwash.swatchcard.make_swatch_card`.
+"""Make a synthetic photo of a pigment's swatch card (patches of 1, 2, 3... coats over paper and over a black ink
+band) with a camera's faults (exposure and white-balance error, vignetting and uneven light, paper grain, noise,
+blur, JPEG), and its layout file beside it: what diffwash fit-swatch reads. The Python equivalent is
+diffwash.swatchcard.make_swatch_card.
 """
 
 from __future__ import annotations

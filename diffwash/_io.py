@@ -57,6 +57,11 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         raise DiffwashError(f"cannot write here: {e.strerror}", file=folder) from None
     os.close(fd)
     tmp = Path(tmp)
+    # mkstemp makes the file private (0600); give it the permissions a plain open() would.
+    with contextlib.suppress(OSError):
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
     try:
         yield tmp
         os.replace(tmp, path)

@@ -158,6 +158,12 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
         loaded = trimesh.load(path, process=False)
     except Exception as e:  # trimesh raises many kinds for unreadable files
         raise _fail(f"cannot read mesh {path}: {e}".splitlines()[0], where, field) from None
+    if isinstance(loaded, trimesh.Scene) and len(loaded.graph.nodes_geometry) == 1:
+        # One untransformed mesh (e.g. a GLB): take it as it is, keeping the normals its file stored
+        # (Scene.dump() copies the geometry and drops them).
+        transform, name = loaded.graph[loaded.graph.nodes_geometry[0]]
+        if np.allclose(transform, np.eye(4)) and isinstance(loaded.geometry.get(name), trimesh.Trimesh):
+            loaded = loaded.geometry[name]
     if isinstance(loaded, trimesh.Scene):
         parts = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
         if not parts:

@@ -88,9 +88,12 @@ def test_fit_image_cli(run_cli, tmp_path, cache):
     assert fitted.params.k_unlit == pytest.approx(1.5, rel=0.01)
     assert fitted.params.shininess == pytest.approx(12, rel=0.01)
     assert (tmp_path / "fit.png").stat().st_size > 10_000
-    # The fitted scene renders: the renderer's own command takes it.
-    r = run_cli("render", "fitted.json", "-o", "again.png", env=cache)
+    # The fitted scene is what the rest of the product reads: bake and export take it directly.
+    r = run_cli("bake", "fitted.json", "-o", "lut.png", "--size", "16", env=cache)
     assert r.returncode == 0, r.stderr
+    r = run_cli("export", "fitted.json", "-o", "rt", env=cache)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "rt" / "viewer.html").is_file()
 
 
 def test_fit_image_not_converged_exits_1_and_writes_nothing(run_cli, tmp_path, cache):

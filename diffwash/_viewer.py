@@ -1,0 +1,95 @@
+"""`viewer.html`: a self-contained WebGL2 page showing a scene with the exported shaders and LUT.
+
+The page embeds everything (no network): the `webgl2` shaders of both shading
+modes (the same text `diffwash export` writes for that target), the LUT as the
+exported PNG's sRGB-encoded values in half floats, and the mesh as the exported
+GLB (base64). Its first frame is the scene's camera and light, so it can be
+compared with `diffwash render`; then the mouse orbits the camera and moves the
+light, and a panel toggles per-vertex / per-pixel thickness and tunes the
+constants that do not change the LUT's range.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+from importlib import resources
+from typing import Any
+
+import numpy as np
+
+from ._glsl import shader_file_names, shader_sources, uniform_values
+from ._version import __version__
+from .lut import Lut, srgb_encode
+
+__all__ = ["viewer_html"]
+
+_FLOATS = ["k_wash", "k_specular", "shininess", "k_unlit", "gain", "bias", "wash_reduction", "lut_wash_max", "lut_unlit_max"]
+_VEC3S = ["light_direction", "eye", "paper"]
+
+
+def _b64(data: bytes) -> str:
+    return base64.b64encode(data).decode("ascii")
+
+
+def _live_constants(u: dict) -> list[dict]:
+    """Sliders for the constants that keep the thicknesses within the LUT's range."""
+    shininess = u["shininess"]
+    return [
+        {"name": "shininess", "min": 0, "max": max(200.0, 2 * shininess), "step": 0.5},
+        {"name": "gain", "min": 0.01, "max": 0.99, "step": 0.01},
+        {"name": "bias", "min": 0.01, "max": 0.99, "step": 0.01},
+        {"name": "wash_reduction", "min": 0, "max": 1, "step": 0.01},
+    ]
+
+
+def viewer_html(scene: Any, lut: Lut, mesh_glb: bytes, *, params: Any = None, title: str | None = None) -> str:
+    """The viewer page for `scene` drawn with `lut` and the mesh `mesh_glb` (GLB bytes).
+
+    **Returns:**
+
+    The HTML text.
+    """
+    p = scene.params if params is None else params
+    colour = "lut-rt" if lut.kind == "rt" else "lut"
+    shaders = {}
+    for mode in ("per-vertex", "per-pixel"):
+        vert, frag = shader_sources("webgl2", mode, colour=colour, lut_srgb=True, output_srgb=True)
+        vname, fname = shader_file_names(mode)
+        shaders[mode] = {"vert": vert, "frag": frag, "vert_name": vname, "frag_name": fname}
+    encoded = srgb_encode(np.asarray(lut.values, np.float64))
+    names = ["lut"] if lut.kind == "colour" else ["lut_reflectance", "lut_transmittance"]
+    textures = [
+        {"uniform": name, "half_float": _b64(np.ascontiguousarray(encoded[..., 3 * i : 3 * i + 3]).astype("<f2").tobytes())}
+        for i, name in enumerate(names)
+    ]
+    u = uniform_values(scene, p, lut=lut)
+    vertices = np.asarray(scene.mesh.vertices, np.float64)
+    centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+    cam = scene.camera
+    config = {
+        "width": scene.width,
+        "height": scene.height,
+        "shading": scene.shading,
+        "shaders": shaders,
+        "lut": {"size": list(lut.size), "kind": lut.kind, "textures": textures},
+        "mesh_glb": _b64(mesh_glb),
+        "mesh_faces": int(np.asarray(scene.mesh.faces).shape[0]),
+        "centre": centre.tolist(),
+        "radius": float(np.max(np.linalg.norm(vertices - centre, axis=1))),
+        "camera": {k: np.asarray(getattr(cam, k), np.float64).tolist() for k in ("eye", "target", "up", "fov_y", "near", "far")},
+        "uniforms": {k: u[k] for k in [*_FLOATS, *_VEC3S, "two_sided"]},
+        "float_uniforms": _FLOATS,
+        "vec3_uniforms": _VEC3S,
+        "live_constants": _live_constants(u),
+        "background": srgb_encode(np.asarray(p.paper, np.float64)).tolist(),
+        "pigments": {"wash": p.wash.name, "unlit": p.unlit.name},
+        "version": __version__,
+    }
+    # JSON is valid JavaScript; "</" is escaped so the data cannot close the <script> element.
+    blob = json.dumps(config, separators=(",", ":")).replace("</", "<\\/")
+    template = (resources.files("diffwash") / "data" / "viewer.html").read_text(encoding="utf-8")
+    import html
+
+    name = title if title is not None else (scene.path or "scene")
+    return template.replace("__TITLE__", html.escape(str(name))).replace("__CONFIG__", blob)

@@ -1,0 +1,71 @@
+"""Render a scene through the exported real-time shaders and a baked LUT with OpenGL.
+
+Headless (EGL; Mesa's llvmpipe without a GPU) with -o FRAME.png; in a window with
+--window (needs a display and the glfw package; with -o too, the last frame shown is
+saved when the window closes). Without either, it opens a window when it can and
+otherwise writes preview.png.
+"""
+
+from __future__ import annotations
+
+NAME = "preview"
+HELP = "render through the exported shaders and LUT with OpenGL (headless or in a window)"
+
+
+def add_arguments(p) -> None:
+    p.add_argument("scene", metavar="SCENE.json", help="scene file")
+    p.add_argument("-o", "--output", metavar="FRAME.png", help="write one frame (8-bit sRGB PNG), headless (with --window: the last frame shown)")
+    p.add_argument("--shading", choices=["per-pixel", "per-vertex"], help="thickness per pixel or per vertex (default: the scene's)")
+    p.add_argument("--size", metavar="WxH", help="image size (default: the scene's)")
+    p.add_argument("--lut", metavar="LUT", help="a baked LUT (its sidecar .json or the image beside it); default: bake one")
+    p.add_argument("--lut-size", default="256", metavar="N", help="size of the LUT baked when --lut is not given (default: %(default)s)")
+    p.add_argument("--rt", action="store_true", help="bake an R/T LUT and use the shaders that composite over the paper")
+    p.add_argument("--window", action="store_true", help="show the scene in a window (orbit with the mouse)")
+    p.add_argument("--frames", type=int, default=None, help=argparse_suppress())
+
+
+def argparse_suppress():
+    import argparse
+
+    return argparse.SUPPRESS
+
+
+def _size(text: str):
+    from .._errors import DiffwashError
+
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise DiffwashError(f"must be WIDTHxHEIGHT, got {text!r}", field="--size") from None
+    return w, h
+
+
+def run(args) -> int:
+    from .. import lut as _lut
+    from .. import preview
+    from .._errors import DiffwashError
+    from .._io import write_png
+    from .._scene import load_scene
+    from .bake import parse_lut_size
+
+    size = _size(args.size) if args.size else None
+    window = args.window or (args.output is None and preview.can_show())
+    if args.window and not preview.has_display():
+        raise DiffwashError("needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set); use -o FRAME.png to render headless", field="--window")
+    scene = load_scene(args.scene, shading=args.shading, size=size)
+    if args.lut:
+        table = _lut.load(args.lut)
+    else:
+        # As `diffwash export` writes it by default: a 16-bit sRGB PNG.
+        table = _lut.load_encoded(_lut.bake(scene, parse_lut_size(args.lut_size, "--lut-size"), kind="rt" if args.rt else "colour"), "png16")
+    if window:
+        last = preview.show(scene, lut=table, frames=args.frames, keep_last=args.output is not None)
+        if args.output and last is not None:
+            write_png(args.output, last)
+            print(f"wrote {args.output} (the window's last frame)")
+        return 0
+    out = args.output or "preview.png"
+    frame = preview.render(scene, lut=table)
+    write_png(out, frame)
+    print(f"wrote {out} ({scene.width}x{scene.height}, {scene.shading}, {table.size[0]}x{table.size[1]} {table.kind} LUT, OpenGL: {preview.renderer_name()})")
+    return 0

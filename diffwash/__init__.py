@@ -9,11 +9,13 @@ The public API is what this module names.
 """
 
 from . import colorimetry as colorimetry
+from . import fit as fit
 from . import km as km
 from . import lut as lut
 from . import pigments as pigments
 from . import preview as preview
 from . import shading as shading
+from . import swatchcard as swatchcard
 from . import swatches as swatches
 from ._camera import Camera as Camera
 from ._errors import DiffwashError as DiffwashError

@@ -21,7 +21,9 @@ from .._version import __version__
 __all__ = ["main", "COMMANDS"]
 
 #: Subcommand modules, in the order `diffwash --help` lists them.
-COMMANDS = ("pigments", "swatches", "render", "bake", "export", "preview", "demo")
+COMMANDS = (
+    "pigments", "swatches", "render", "bake", "export", "preview", "swatch_card", "fit_swatch", "fit_image", "demo",
+)  # fmt: skip
 
 
 def enable_compilation_cache() -> None:

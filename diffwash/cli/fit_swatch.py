@@ -1,0 +1,168 @@
+"""Fit a pigment's K and S (per coat) to photos of its swatch card (PHOTO --layout LAYOUT.json), or every pigment of
+a table of measured colours at once (--table MEASUREMENTS.csv), and write a pigment file (or library) with the
+fit's diagnostics. The layout and CSV formats are in docs/fitting.md; the Python equivalents are
+diffwash.fit.fit_swatches(PHOTO, LAYOUT) and diffwash.fit.fit_table(CSV). A fit that does not converge writes
+nothing and exits with status 1, unless --allow-unconverged.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+NAME = "fit-swatch"
+HELP = "fit pigment K and S to a swatch-card photo or a table of measured colours"
+USES_JAX = True
+
+
+def add_arguments(p) -> None:
+    p.add_argument("photos", nargs="*", metavar="PHOTO",
+                   help="photo(s) of one pigment's swatch card (PNG 8/16 bit, JPEG)")  # fmt: skip
+    p.add_argument("--layout", action="append", metavar="LAYOUT.json",
+                   help="where the paper, black band and patches are in the photo (one per photo)")  # fmt: skip
+    p.add_argument("--table", metavar="CSV", help="fit every pigment of a measurement table instead of a photo")
+    p.add_argument("-o", "--output", required=True, metavar="JSON", help="the pigment (or library) file to write")
+    p.add_argument("--name", help="the pigment's name (default: the layout's 'name', else the photo's file name)")
+    p.add_argument("--report", metavar="PNG", help="also write a picture of observed vs fitted colours")
+    p.add_argument("--linear", action="store_true", help="the table's r, g, b are linear reflectance, not sRGB")
+    p.add_argument("--plain", action="store_true",
+                   help="table: the plain fit (thickness = amount, sRGB residuals, no prior) instead of the model")
+    p.add_argument("--thickness", choices=("power", "linear"),
+                   help="table: thickness = amount**gamma (power, default) or amount")  # fmt: skip
+    p.add_argument("--loss", choices=("de2000", "cie94", "lab", "srgb"),
+                   help="residuals (default: cie94 for photos, de2000 for tables)")
+    p.add_argument("--surface", choices=("none", "saunderson"),
+                   help="table: Saunderson's surface correction (default: none)")
+    p.add_argument("--max-steps", type=int, default=1000, metavar="N",
+                   help="Levenberg-Marquardt steps at most (default: %(default)s)")  # fmt: skip
+    p.add_argument("--allow-unconverged", action="store_true", help="write the result even if the fit did not converge")
+
+
+def _srgb8(linear) -> str:
+    import numpy as np
+
+    v = np.clip(np.asarray(linear, np.float64), 0, 1)
+    d = np.where(v > 0.0031308, 1.055 * v ** (1 / 2.4) - 0.055, 12.92 * v)
+    return "(" + ", ".join(f"{int(round(255 * c)):3d}" for c in d) + ")"
+
+
+def _check_output(path: str, suffix: str, flag: str) -> Path:
+    from .._errors import DiffwashError
+
+    out = Path(path)
+    if out.suffix.lower() != suffix:
+        raise DiffwashError(f"must be a {suffix} file, got {out.name!r}", field=flag)
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise DiffwashError("output folder does not exist", file=out.parent)
+    return out
+
+
+def run(args) -> int:
+    from .._errors import DiffwashError
+
+    out = _check_output(args.output, ".json", "--output")
+    report = _check_output(args.report, ".png", "--report") if args.report else None
+    if args.max_steps < 1:
+        raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
+    if args.table is not None:
+        if args.photos or args.layout:
+            raise DiffwashError("give either --table or photos with --layout, not both", field="--table")
+        return _run_table(args, out, report)
+    if not args.photos:
+        raise DiffwashError("needs a PHOTO and its --layout, or --table CSV", field="PHOTO")
+    for flag in ("plain", "thickness", "surface", "linear"):
+        if getattr(args, flag):
+            raise DiffwashError("only applies to --table fits", field=f"--{flag}")
+    if not args.layout:
+        raise DiffwashError("missing: each photo needs its layout file", field="--layout")
+    if len(args.layout) != len(args.photos):
+        raise DiffwashError(f"got {len(args.photos)} photos but {len(args.layout)} layouts (one per photo)",
+                            field="--layout")  # fmt: skip
+    return _run_photos(args, out, report)
+
+
+def _finish(converged: bool, allow: bool, what: str) -> None:
+    from .._errors import FailureError
+
+    if not converged and not allow:
+        raise FailureError(f"{what} did not converge; nothing was written (use --allow-unconverged to write it anyway, "
+                           f"or raise --max-steps)")  # fmt: skip
+
+
+def _run_photos(args, out: Path, report: Path | None) -> int:
+    import time
+
+    import numpy as np
+
+    from .._io import read_image
+    from ..fit import fit_swatches
+    from ..fit._photo import read_layout
+    from ..fit._report import save_swatch_report
+    from ..fit._swatch import SWATCH_MODEL, FitModel
+
+    t0 = time.perf_counter()
+    model = SWATCH_MODEL
+    if args.loss is not None:
+        model = FitModel(thickness="linear", loss=args.loss, prior=SWATCH_MODEL.prior)
+    fit = fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps)
+    p = fit.pigment
+    print(f"{p.name}: {len(fit.patches)} patches from {len(args.photos)} photo{'s' if len(args.photos) > 1 else ''}")
+    print(f"  {'coats':>5}  {'ground':6}  {'observed sRGB':>15}  {'fitted sRGB':>15}  {'CIEDE2000':>9}")
+    for q in fit.patches:
+        flag = "  (clipped: a bound)" if any(q.bound) else ""
+        print(f"  {q.coats:5g}  {q.ground:6}  {_srgb8(q.observed):>15}  {_srgb8(q.fitted):>15}  {q.delta_e:9.2f}{flag}")
+    print(f"  K = {np.round(p.K, 4).tolist()}, S = {np.round(p.S, 4).tolist()} per coat")
+    status = "converged" if fit.converged else "NOT converged"
+    print(f"  mean CIEDE2000 {fit.mean_delta_e:.2f}; Levenberg-Marquardt {status} in {fit.iterations} steps")
+    for c in fit.calibrations:
+        for note in c.notes:
+            print(f"  note: {note}")
+    print(f"  {fit.identifiability}")
+    _finish(fit.converged, args.allow_unconverged, "the fit")
+    fit.save(out)
+    print(f"wrote {out}")
+    if report is not None:
+        photo, _ = read_image(args.photos[0])
+        save_swatch_report(report, fit, photo, read_layout(args.layout[0]))
+        print(f"wrote {report}")
+    print(f"done in {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def _run_table(args, out: Path, report: Path | None) -> int:
+    import time
+
+    import numpy as np
+
+    from ..fit import FitModel, fit_table, read_table
+    from ..fit._kmfit import PLAIN
+    from ..fit._report import save_table_report
+
+    t0 = time.perf_counter()
+    base = PLAIN if args.plain else FitModel()
+    model = FitModel(
+        thickness=args.thickness or base.thickness,
+        surface=args.surface or base.surface,
+        loss=args.loss or base.loss,
+        prior=base.prior,
+    )
+    table = read_table(args.table, linear=args.linear)
+    fit = fit_table(table, model=model, max_steps=args.max_steps)
+    print(f"{len(fit.pigments)} pigments from {len(table)} measurements; model: "
+          f"{', '.join(f'{k}={v}' for k, v in model.describe().items())}")  # fmt: skip
+    width = max(len("pigment"), *(len(n) for n in fit.names))
+    print(f"  {'pigment':<{width}}  {'rows':>4}  {'mean dE':>7}  {'max dE':>6}  {'gamma':>5}  {'steps':>5}  converged")
+    for i, p in enumerate(fit.pigments):
+        de = fit.delta_e[i]
+        print(f"  {p.name:<{width}}  {len(de):4d}  {np.mean(de):7.2f}  {np.max(de):6.2f}  {fit.gamma[i]:5.3f}  "
+              f"{int(fit.iterations[i]):5d}  {'yes' if fit.converged[i] else 'NO'}")  # fmt: skip
+    allde = np.concatenate(fit.delta_e)
+    print(f"  mean CIEDE2000 over all rows: {allde.mean():.2f}")
+    bad = [fit.names[i] for i in range(len(fit.pigments)) if not fit.converged[i]]
+    _finish(not bad, args.allow_unconverged, f"the fit of {', '.join(bad)}")
+    fit.save(out)
+    print(f"wrote {out}")
+    if report is not None:
+        save_table_report(report, fit, table)
+        print(f"wrote {report}")
+    print(f"done in {time.perf_counter() - t0:.2f} s")
+    return 0

@@ -1,0 +1,34 @@
+"""Fitting: pigments from swatch photos and measurement tables, shading parameters from target images.
+
+Three fits, each a thin layer of data handling over optimistix least squares:
+
+- `fit_swatches(photo, layout)`: one pigment's K and S (per coat) from photos of its swatch card
+  (`diffwash.swatchcard` makes synthetic ones); `diffwash fit-swatch PHOTO --layout LAYOUT.json`.
+- `fit_table(csv)`: every pigment of a table of measured colours at once (`jax.vmap`);
+  `diffwash fit-swatch --table MEASUREMENTS.csv`.
+- `fit_image(targets, scenes, fit=...)`: named scene parameters (K, S, gain, bias, thickness
+  constants, shininess, light, paper) from target images; `diffwash fit-image`.
+
+Formats, models, gauges and what each fit can identify: docs/fitting.md.
+"""
+
+from ._image import FITTABLE as FITTABLE
+from ._image import SOLVERS as SOLVERS
+from ._image import ImageFit as ImageFit
+from ._image import fit_image as fit_image
+from ._image import load_cameras as load_cameras
+from ._image import parse_fit_list as parse_fit_list
+from ._kmfit import PLAIN as PLAIN
+from ._kmfit import FitModel as FitModel
+from ._photo import Layout as Layout
+from ._photo import parse_layout as parse_layout
+from ._photo import read_layout as read_layout
+from ._swatch import SWATCH_MODEL as SWATCH_MODEL
+from ._swatch import PatchResult as PatchResult
+from ._swatch import SwatchFit as SwatchFit
+from ._swatch import fit_swatches as fit_swatches
+from ._table import MeasurementTable as MeasurementTable
+from ._table import TableFit as TableFit
+from ._table import fit_table as fit_table
+from ._table import read_ntu_wpsm as read_ntu_wpsm
+from ._table import read_table as read_table

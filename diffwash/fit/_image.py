@@ -1,0 +1,597 @@
+r"""Shading parameters from target images: render, compare, and solve with optimistix.
+
+`fit_image` fits named parameters of a scene (pigment K and S, gain, bias, the
+thickness constants, shininess, the light, the paper...) so that the scene's
+rendering matches one or more target images, with an optimistix least-squares
+solver (Levenberg-Marquardt by default).
+
+**What is compared.** The pixels the object covers in the rendering (the
+coverage mask of `diffwash.rasterize`; the geometry and camera are not
+fitted, so the visibility is computed once per view and reused). The loss is
+in linear RGB (`loss="linear"`, the renderer's own output against the target
+linearised from sRGB) or in CIELAB (`loss="lab"`, closer to what the eye sees).
+
+**Reparametrisation.** The solver works on unconstrained numbers:
+
+- `log` for positive parameters (`k_wash`, `k_unlit`, `k_specular`,
+  `shininess`, pigment `K` and `S`);
+- `logit` for parameters in (0, 1) (`gain`, `bias`, `wash_reduction`,
+  `paper`); starting values are nudged into [0.01, 0.99] (a logit at 0 or 1
+  is infinite);
+- the light by two angles (azimuth and elevation): the model only sees its
+  direction, so its length is not a parameter.
+
+**Gauges.** Some parameters trade off exactly; fitting both sides of such a
+trade would leave a direction with no information, so one side is held fixed
+(a *gauge*) and the fit says so:
+
+- a glaze's thickness scale against its pigment's K and S: the layer sees only
+  `K t` and `S t`, so scaling K and S by `c` and the thickness by `1/c`
+  changes nothing. When a pigment's `K` and `S` are both fitted together with
+  its thickness constant (`k_wash` for the wash, `k_unlit` for the unlit glaze),
+  the thickness constant is held at its starting value: K and S are then per
+  unit of that thickness.
+- `k_specular` against `k_wash`: the wash thickness uses only their product;
+  with both named, `k_specular` is held fixed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import functools
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from .. import colorimetry
+from .._errors import DiffwashError
+from .._io import read_image, read_json
+from .._raster import Visibility, rasterize
+from .. import shading
+from .._scene import Scene, load_scene, parse_scene, save_scene
+from ..pigments import Pigment
+from ..shading import Params
+
+__all__ = ["FITTABLE", "SOLVERS", "ImageFit", "fit_image", "parse_fit_list", "load_cameras"]
+
+#: Fittable parameters: name -> (kind, size). Kinds: log (> 0), logit (in (0, 1)), sphere (a direction).
+FITTABLE: dict[str, tuple[str, int]] = {
+    "gain": ("logit", 1),
+    "bias": ("logit", 1),
+    "wash_reduction": ("logit", 1),
+    "k_wash": ("log", 1),
+    "k_unlit": ("log", 1),
+    "k_specular": ("log", 1),
+    "shininess": ("log", 1),
+    "wash.K": ("log", 3),
+    "wash.S": ("log", 3),
+    "unlit.K": ("log", 3),
+    "unlit.S": ("log", 3),
+    "paper": ("logit", 3),
+    "light": ("sphere", 2),
+}
+#: Solvers by name: least-squares solvers work on the residuals, minimisers on half their sum of squares.
+SOLVERS = ("lm", "gauss-newton", "dogleg", "bfgs")
+LOSSES = ("linear", "lab")
+
+
+def parse_fit_list(text: str | Sequence[str], *, field: str = "--fit") -> tuple[str, ...]:
+    """Validate a list of parameter names (comma-separated text or a sequence)."""
+    names = [n.strip() for n in text.split(",")] if isinstance(text, str) else [str(n).strip() for n in text]
+    names = [n for n in names if n]
+    if not names:
+        raise DiffwashError(f"names no parameter; choose from {', '.join(FITTABLE)}", field=field)
+    for n in names:
+        if n not in FITTABLE:
+            close = difflib.get_close_matches(n, list(FITTABLE), n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else f" (fittable: {', '.join(FITTABLE)})"
+            raise DiffwashError(f"unknown parameter {n!r}{hint}", field=field)
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise DiffwashError(f"names {', '.join(dupes)} twice", field=field)
+    return tuple(names)
+
+
+def _gauges(names: tuple[str, ...]) -> tuple[tuple[str, ...], list[str]]:
+    """Drop the parameters a gauge holds fixed; say why."""
+    notes = []
+    held = set()
+    for glaze, k in (("wash", "k_wash"), ("unlit", "k_unlit")):
+        if f"{glaze}.K" in names and f"{glaze}.S" in names and k in names:
+            held.add(k)
+            notes.append(f"gauge: {k} is held at its starting value, since {glaze}.K and {glaze}.S are fitted too "
+                         f"(the {glaze} layer sees only K*thickness and S*thickness); the fitted K and S are per "
+                         f"unit of that thickness")  # fmt: skip
+    if "k_specular" in names and "k_wash" in names and "k_wash" not in held:
+        held.add("k_specular")
+        notes.append("gauge: k_specular is held at its starting value, since k_wash is fitted too "
+                     "(the wash thickness uses only their product)")  # fmt: skip
+    if "k_specular" in names and "k_wash" in held:
+        held.add("k_specular")
+        notes.append("gauge: k_specular is held too (it scales the wash thickness like k_wash)")
+    return tuple(n for n in names if n not in held), notes
+
+
+def _get(params: Params, name: str) -> np.ndarray:
+    if "." in name:
+        glaze, which = name.split(".")
+        return np.asarray(getattr(getattr(params, glaze), which), np.float64)
+    return np.asarray(getattr(params, name), np.float64)
+
+
+def _logit(p: np.ndarray) -> np.ndarray:
+    p = np.clip(p, 0.01, 0.99)
+    return np.log(p / (1 - p))
+
+
+def _encode(params: Params, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Parameters to the solver's unconstrained variables."""
+    y = {}
+    for n in names:
+        kind, size = FITTABLE[n]
+        v = _get(params, n).reshape(-1)
+        if kind == "log":
+            y[n] = np.log(np.maximum(v, 1e-6))
+        elif kind == "logit":
+            y[n] = _logit(v)
+        else:  # sphere: azimuth about +y from +z towards +x, elevation towards +y
+            d = v / max(float(np.linalg.norm(v)), 1e-300)
+            y[n] = np.array([math.atan2(d[0], d[2]), math.asin(float(np.clip(d[1], -1, 1)))])
+        y[n] = y[n].reshape(()) if size == 1 else y[n]
+    return y
+
+
+def _decode(y: dict[str, Any], base: Params, light_length: float) -> Params:
+    """The solver's variables back to a `Params` (the others from `base`)."""
+    values = {}
+    for n, v in y.items():
+        kind, _ = FITTABLE[n]
+        if kind == "log":
+            values[n] = jnp.exp(v)
+        elif kind == "logit":
+            values[n] = jax.nn.sigmoid(v)
+        else:
+            az, el = v[0], v[1]
+            values[n] = light_length * jnp.stack([jnp.cos(el) * jnp.sin(az), jnp.sin(el), jnp.cos(el) * jnp.cos(az)])
+    p = base
+    for glaze in ("wash", "unlit"):
+        pig = getattr(p, glaze)
+        K = values.pop(f"{glaze}.K", pig.K)
+        S = values.pop(f"{glaze}.S", pig.S)
+        p = eqx.tree_at(lambda q, g=glaze: getattr(q, g), p, Pigment(K=K, S=S, name=pig.name, density=pig.density,
+                                                                     staining=pig.staining,
+                                                                     granularity=pig.granularity))  # fmt: skip
+    for n, v in values.items():
+        p = eqx.tree_at(lambda q, n=n: getattr(q, n), p, v)
+    return p
+
+
+@dataclass(frozen=True)
+class ImageFit:
+    """The result of `fit_image`.
+
+    **Fields:**
+
+    - `scene`: the (first) scene, and `params` its fitted shading parameters.
+    - `fitted`, `start`: the fitted parameters' values after and before, by name.
+    - `held`: parameters a gauge held fixed, and `notes` saying why.
+    - `history`: the loss (root mean square residual) after each step.
+    - `iterations`, `converged`, `message`: how the solver ended.
+    - `rms`: root mean square residual per view, in the loss's units
+      (linear reflectance, or CIELAB units).
+    - `loss`, `solver`: what was minimised and how; `seconds`: the time it took.
+    - `start_params`: the parameters the fit started from.
+    """
+
+    scene: Scene
+    params: Params
+    fitted: dict[str, Any]
+    start: dict[str, Any]
+    held: tuple[str, ...]
+    notes: list[str]
+    history: list[float]
+    iterations: int
+    converged: bool
+    message: str
+    rms: list[float]
+    loss: str
+    solver: str
+    seconds: float = 0.0
+    start_params: Params | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Diagnostics, JSON-ready."""
+        lst = lambda v: np.asarray(v, np.float64).round(8).tolist()  # noqa: E731
+        return {"fitted": {k: lst(v) for k, v in self.fitted.items()},
+                "start": {k: lst(v) for k, v in self.start.items()},
+                "held_by_gauge": list(self.held), "notes": self.notes, "loss": self.loss, "solver": self.solver,
+                "iterations": self.iterations, "converged": self.converged, "message": self.message,
+                "rms_per_view": [float(r) for r in self.rms]}  # fmt: skip
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the scene with the fitted parameters (`diffwash.save_scene`): `bake` and `export` take it."""
+        save_scene(path, self.scene, self.params)
+
+
+def load_cameras(path: str | os.PathLike, scene: Scene) -> list[Scene]:
+    """One scene per camera of a camera list file: `[{"eye": [...], "target": [...], ...}, ...]`.
+
+    Each camera object has the keys of a scene file's `camera`.
+    """
+    data = read_json(path)
+    if isinstance(data, dict) and "cameras" in data:
+        data = data["cameras"]
+    if not isinstance(data, list) or not data:
+        raise DiffwashError('must be a non-empty list of cameras (or {"cameras": [...]})', file=path)
+    if scene.path is None:
+        raise DiffwashError("a camera list needs a scene loaded from a file", file=path)
+    src = read_json(scene.path)
+    out = []
+    for i, cam in enumerate(data):
+        if not isinstance(cam, dict):
+            raise DiffwashError(f"must be a camera object, got {type(cam).__name__}", file=path, field=f"[{i}]")
+        try:
+            out.append(parse_scene({**src, "camera": cam}, file=scene.path, shading=scene.shading,
+                                   size=(scene.width, scene.height)))  # fmt: skip
+        except DiffwashError as e:
+            raise DiffwashError(e.problem, file=path, field=f"[{i}]" + (f".{e.field}" if e.field else "")) from None
+    return out
+
+
+def _read_target(target: Any, scene: Scene, index: int) -> np.ndarray:
+    """A target as linear RGB (H, W, 3), checked against the scene's size."""
+    if isinstance(target, (str, os.PathLike)):
+        display, _ = read_image(target)
+        where = os.fspath(target)
+        linear = np.where(display > 0.04045, ((np.maximum(display, 0.04045) + 0.055) / 1.055) ** 2.4, display / 12.92)
+    else:
+        linear = np.asarray(target, np.float64)
+        where = None
+        if linear.ndim != 3 or linear.shape[2] not in (3, 4):
+            raise DiffwashError(f"target {index} must be an (H, W, 3) linear image, got shape {linear.shape}")
+        linear = linear[..., :3]
+    h, w = linear.shape[:2]
+    if (w, h) != (scene.width, scene.height):
+        raise DiffwashError(f"is {w}x{h} pixels but the scene renders {scene.width}x{scene.height}; "
+                            f"render the scene at the target's size or resize the target", file=where)  # fmt: skip
+    if not np.all(np.isfinite(linear)):
+        raise DiffwashError("has NaN or infinite values", file=where)
+    return linear
+
+
+def _make_solver(name: str, rtol: float, atol: float):
+    if name == "lm":
+        return optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+    if name == "gauss-newton":
+        return optx.GaussNewton(rtol=rtol, atol=atol)
+    if name == "dogleg":
+        return optx.Dogleg(rtol=rtol, atol=atol)
+    if name == "bfgs":
+        return optx.BFGS(rtol=rtol, atol=atol)
+    raise DiffwashError(f"unknown solver {name!r} (choose from {', '.join(SOLVERS)})", field="--solver")
+
+
+class _View(eqx.Module):
+    """One view's fixed geometry at its covered pixels, computed once (the geometry is not fitted).
+
+    Per-pixel shading keeps each pixel's normal `N` and direction to the eye `V`; per-vertex shading
+    keeps the vertices' normals and eye directions and each pixel's triangle and barycentrics. Padding
+    entries of the covered-pixel list have `valid = False`.
+    """
+
+    target: Any
+    valid: Any
+    N: Any = None
+    V: Any = None
+    vertex_N: Any = None
+    vertex_V: Any = None
+    faces: Any = None
+    tri: Any = None
+    bary: Any = None
+    front: Any = None
+    mode: str = eqx.field(static=True, default="per-pixel")
+    both: bool = eqx.field(static=True, default=False)
+
+
+def _prepare_view(scene: Scene, vis: Visibility, target: np.ndarray, dtype) -> _View:
+    """The renderer's geometry steps (`diffwash.render`: barycentrics, interpolation), done once."""
+    f = lambda a: jnp.asarray(np.asarray(a, dtype))  # noqa: E731
+    mesh = scene.mesh
+    camera = jax.tree.map(f, scene.camera)
+    return _geometry(f(mesh.vertices), f(mesh.normals), jnp.asarray(np.asarray(mesh.faces, np.int32)), camera,
+                     jnp.asarray(np.asarray(vis.pixels, np.int32)), jnp.asarray(np.asarray(vis.pixel_tri, np.int32)),
+                     f(np.asarray(target).reshape(-1, 3)), width=scene.width, height=scene.height, mode=scene.shading,
+                     both=not scene.cull_backfaces)  # fmt: skip
+
+
+@functools.partial(jax.jit, static_argnames=("width", "height", "mode", "both"))
+def _geometry(vertices, normals, faces, camera, pixels, tri, target, *, width, height, mode, both) -> _View:
+    from .._barycentric import barycentrics
+    from .._interpolate import interpolate
+    from .._raster import clip_positions
+
+    valid = pixels < width * height
+    tgt = target[jnp.where(valid, pixels, 0)]
+    clip = clip_positions(vertices, camera.view_projection(width / height))
+    bary, front = barycentrics(clip, faces, tri, pixels, width, height)
+    eye = camera.eye
+    if mode == "per-pixel":
+        N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
+        if both:
+            N = jnp.where(front[:, None], N, -N)
+        V = shading.safe_normalize(eye - interpolate(vertices, faces, tri, bary))
+        return _View(target=tgt, valid=valid, N=N, V=V, mode="per-pixel", both=both)
+    return _View(target=tgt, valid=valid, vertex_N=normals, vertex_V=shading.safe_normalize(eye - vertices),
+                 faces=faces, tri=tri, bary=bary, front=front, mode="per-vertex", both=both)  # fmt: skip
+
+
+#: The inputs of `_glaze_terms`, in order.
+_GLAZE_INPUTS = ("wash", "unlit", "wash.K", "wash.S", "unlit.K", "unlit.S", "paper")
+
+
+def _glaze(inputs: tuple[Any, ...], varying: tuple[bool, ...]) -> Any:
+    r"""`shading.glaze`, arranged so that its derivative is cheap to push many tangents through.
+
+    The colour at a pixel depends on the two thicknesses there and, channel by channel, on the
+    pigments' K, S and the paper. So its Jacobian is a handful of per-pixel partial derivatives:
+    they are computed once per evaluation with `jax.jvp` of `shading.glaze` itself (one pass per
+    input that varies, a tangent of ones: channels do not mix), and the colour is written as
+
+    $$ c = c_0 + \sum_i \partial_i c_0\,(x_i - \bar x_i) $$
+
+    with $c_0$, $\partial_i c_0$ and $\bar x_i = x_i$ held constant (`stop_gradient`): the value is
+    exactly the glaze and so is the first derivative, while each of the fit's tangents costs a
+    multiply-add instead of a pass through Kubelka-Munk. (Second derivatives are not those of the
+    glaze; the least-squares solvers use first derivatives only.)
+
+    **Arguments:** `inputs` as `_GLAZE_INPUTS`; `varying` (static) says which of them depend on
+    the fitted parameters.
+    """
+    sg = jax.lax.stop_gradient
+    fixed = tuple(sg(jnp.asarray(a)) for a in inputs)
+    out = _glaze_terms(*fixed)
+    live = [i for i, v in enumerate(varying) if v]
+    if not live:
+        return out
+    for i in live:
+        # One jvp per varying input (separate passes: batching them with vmap is slower on the CPU).
+        f = lambda x, i=i: _glaze_terms(*fixed[:i], x, *fixed[i + 1 :])  # noqa: E731
+        partial = jax.jvp(f, (fixed[i],), (jnp.ones_like(fixed[i]),))[1]  # (P, 3)
+        d = jnp.asarray(inputs[i]) - fixed[i]  # 0, with the input's derivative
+        out = out + partial * (d[:, None] if i < 2 else d[None, :])
+    return out
+
+
+def _glaze_terms(wash, unlit, Kw, Sw, Ku, Su, paper):
+    return shading.glaze(Params(wash=Pigment(K=Kw, S=Sw), unlit=Pigment(K=Ku, S=Su), paper=paper), wash, unlit)
+
+
+def _shade(view: _View, params: Params, varying: tuple[bool, ...] = (True,) * 7) -> Any:
+    """Linear RGB at the view's covered pixels: `diffwash.render`'s shading, from the stored geometry."""
+    L = shading.safe_normalize(jnp.asarray(params.light))
+    if view.mode == "per-pixel":
+        wash, unlit = shading.thicknesses(view.N, L, view.V, params)
+    else:
+        from .._interpolate import interpolate
+
+        wash_v, unlit_v = shading.thicknesses(view.vertex_N, L, view.vertex_V, params)
+        wash = interpolate(wash_v, view.faces, view.tri, view.bary)
+        unlit = interpolate(unlit_v, view.faces, view.tri, view.bary)
+        if view.both:
+            wash_b, unlit_b = shading.thicknesses(-view.vertex_N, L, view.vertex_V, params)
+            wash = jnp.where(view.front, wash, interpolate(wash_b, view.faces, view.tri, view.bary))
+            unlit = jnp.where(view.front, unlit, interpolate(unlit_b, view.faces, view.tri, view.bary))
+    inputs = (wash, unlit, params.wash.K, params.wash.S, params.unlit.K, params.unlit.S, params.paper)
+    return _glaze(inputs, varying)
+
+
+class _Problem(eqx.Module):
+    """Everything the residual function needs, as a pytree (one compile per shapes)."""
+
+    views: tuple[_View, ...]
+    base: Params
+    light_length: Any
+    loss: str = eqx.field(static=True)
+    varying: tuple[bool, ...] = eqx.field(static=True, default=(True,) * 7)
+
+
+def _residuals(y: dict[str, Any], problem: _Problem) -> Any:
+    params = _decode(y, problem.base, problem.light_length)
+    parts = []
+    for view in problem.views:
+        img = _shade(view, params, problem.varying)
+        if problem.loss == "lab":
+            d = colorimetry.linear_srgb_to_lab(img) - colorimetry.linear_srgb_to_lab(view.target)
+        else:
+            d = img - view.target
+        parts.append(jnp.where(view.valid[:, None], d, 0).ravel())
+    return jnp.concatenate(parts)
+
+
+def fit_image(
+    targets: Any,
+    scenes: Any,
+    fit: str | Sequence[str] = ("gain", "bias", "k_wash", "k_unlit", "shininess"),
+    *,
+    start: Params | None = None,
+    loss: str = "linear",
+    solver: str = "lm",
+    max_steps: int = 100,
+    rtol: float | None = None,
+    atol: float | None = None,
+    progress: bool | Callable[[int, float], None] = False,
+) -> ImageFit:
+    """Fit scene parameters to target images.
+
+    **Arguments:**
+
+    - `targets`: a target image (path of a PNG/JPEG, sRGB; or an (H, W, 3)
+      array of linear RGB), or a list of them, one per view.
+    - `scenes`: a `Scene` or scene path, or a list matching `targets` (one per
+      view: their geometry and cameras; the shading parameters are shared and
+      taken from the first).
+    - `fit`: the parameter names (see `FITTABLE`), a list or comma-separated text.
+    - `start`: starting parameters (default: the first scene's).
+    - `loss`: `"linear"` (linear RGB) or `"lab"` (CIELAB).
+    - `solver`: `"lm"` (Levenberg-Marquardt), `"gauss-newton"`, `"dogleg"` or `"bfgs"`.
+    - `max_steps`: solver steps at most.
+    - `rtol`, `atol`: the solver's tolerances (default 1e-6, or 1e-4 in float32).
+    - `progress`: print the loss at each step (True), or call `progress(step, loss)`.
+
+    **Returns:**
+
+    An `ImageFit` (its `save` writes the fitted scene). Not converging is
+    reported in the result (`converged`, `message`), not raised.
+    """
+    t_start = time.perf_counter()
+    names = parse_fit_list(fit)
+    if loss not in LOSSES:
+        raise DiffwashError(f"unknown loss {loss!r} (choose from {', '.join(LOSSES)})", field="--loss")
+    if solver not in SOLVERS:
+        raise DiffwashError(f"unknown solver {solver!r} (choose from {', '.join(SOLVERS)})", field="--solver")
+    target_list = list(targets) if isinstance(targets, (list, tuple)) else [targets]
+    scene_list = list(scenes) if isinstance(scenes, (list, tuple)) else [scenes]
+    scene_list = [load_scene(s) if isinstance(s, (str, os.PathLike)) else s for s in scene_list]
+    if len(scene_list) == 1 and len(target_list) > 1:
+        scene_list = scene_list * len(target_list)
+    if len(scene_list) != len(target_list):
+        raise DiffwashError(f"got {len(target_list)} targets but {len(scene_list)} scenes: give one scene per target "
+                            f"(or one for all)", field="--scene")  # fmt: skip
+    free, notes = _gauges(names)
+    held = tuple(n for n in names if n not in free)
+    base = start if start is not None else scene_list[0].params
+    dtype = jnp.zeros(()).dtype
+
+    views = []
+    for i, (t, s) in enumerate(zip(target_list, scene_list)):
+        linear = _read_target(t, s, i)
+        vis = rasterize(s)
+        if not np.any(np.asarray(vis.tri_id) >= 0):
+            raise DiffwashError(f"the object covers no pixel of view {i}: nothing to compare", file=s.path)
+        views.append(_prepare_view(s, vis, linear, dtype))
+    light_length = float(np.linalg.norm(np.asarray(base.light, np.float64)))
+    cast = lambda a: jnp.asarray(a, dtype) if np.asarray(a).dtype.kind == "f" else a  # noqa: E731
+    thick = {"gain", "bias", "wash_reduction", "k_wash", "k_unlit", "k_specular", "shininess", "light"}
+    varying = (bool(thick & set(free)),) * 2 + tuple(n in free for n in _GLAZE_INPUTS[2:])
+    problem = _Problem(views=tuple(views), base=jax.tree.map(cast, base), light_length=jnp.asarray(light_length, dtype),
+                       loss=loss, varying=varying)  # fmt: skip
+    y0 = {k: jnp.asarray(v, dtype) for k, v in _encode(base, free).items()}
+    tol = 1e-6 if dtype == jnp.float64 else 1e-4
+    opt = _make_solver(solver, rtol if rtol is not None else tol, atol if atol is not None else tol)
+    y, history, steps, result, r = _iterate(opt, y0, problem, max_steps, progress)
+    converged = not isinstance(result, str) and bool(result == optx.RESULTS.successful)
+    message = "converged" if converged else (result if isinstance(result, str) else optx.RESULTS[result])
+    params = _decode_jit(y, base, light_length)
+    r = np.asarray(_residual_jit(y, problem) if r is None else r, np.float64)
+    rms, off = [], 0
+    for view in views:
+        n = view.target.size
+        used = 3 * int(np.sum(np.asarray(view.valid)))
+        rms.append(float(np.sqrt(np.sum(r[off : off + n] ** 2) / used)))
+        off += n
+    fitted = {n: np.asarray(_get(params, n)) for n in names}
+    started = {n: np.asarray(_get(base, n)) for n in names}
+    params = jax.tree.map(lambda a: np.asarray(a, np.float64) if isinstance(a, jax.Array) else a, params)
+    return ImageFit(scene=scene_list[0], params=params,
+                    fitted=fitted, start=started, held=held, notes=notes, history=history, iterations=steps,
+                    converged=bool(converged), message=str(message), rms=rms, loss=loss, solver=solver,
+                    seconds=time.perf_counter() - t_start, start_params=base)  # fmt: skip
+
+
+_residual_jit = jax.jit(_residuals)
+_decode_jit = eqx.filter_jit(_decode)
+
+
+def _is_least_squares(solver: Any) -> bool:
+    return isinstance(solver, optx.AbstractLeastSquaresSolver)
+
+
+@eqx.filter_jit
+def _init(solver, y, problem):
+    fn = _objective(solver)
+    f_struct, aux_struct = jax.eval_shape(lambda: fn(y, problem))
+    return solver.init(fn, y, problem, {}, f_struct, aux_struct, frozenset())
+
+
+@eqx.filter_jit
+def _step(solver, y, problem, state):
+    fn = _objective(solver)
+    y, state, _ = solver.step(fn, y, problem, {}, state, frozenset())
+    done, result = solver.terminate(fn, y, problem, {}, state, frozenset())
+    return y, state, done, result, _state_loss(state)
+
+
+def _objective(solver):
+    if _is_least_squares(solver):
+        return lambda y, problem: (_residuals(y, problem), None)
+
+    def scalar(y, problem):
+        r = _residuals(y, problem)
+        return 0.5 * jnp.sum(r * r), None
+
+    return scalar
+
+
+def _state_loss(state: Any) -> Any:
+    info = state.f_info
+    if hasattr(info, "residual"):
+        r = info.residual
+        return jnp.sqrt(jnp.mean(r * r))
+    return jnp.asarray(info.f)
+
+
+def _iterate(solver, y0, problem, max_steps: int, progress) -> tuple[Any, list[float], int, Any, Any]:
+    """Step the solver by hand so that each step's loss can be shown."""
+    state = _init(solver, y0, problem)
+    y = y0
+    history: list[float] = []
+    report = progress if callable(progress) else (_print_progress if progress else None)
+    result = optx.RESULTS.successful
+    steps = 0
+    minimiser = not _is_least_squares(solver)
+    stalled = 0
+    n_all = sum(int(v.target.size) for v in problem.views)
+    n_used = sum(3 * int(np.sum(np.asarray(v.valid))) for v in problem.views)  # without the padding
+    for steps in range(1, max_steps + 1):
+        y, state, done, result, loss = _step(solver, y, problem, state)
+        value = float(loss)
+        if minimiser:  # 0.5 sum r^2 -> root mean square
+            value = math.sqrt(max(2 * value / n_used, 0.0))
+        else:
+            value = value * math.sqrt(n_all / n_used)
+        # Steps that no longer lower the loss at all, while the solver shrinks its trust region:
+        # the loss has reached its floor (the fit's misfit, or float rounding), so more steps only
+        # chase noise.
+        stalled = stalled + 1 if history and abs(value - history[-1]) <= _STALL * history[-1] else 0
+        history.append(value)
+        if report is not None:
+            report(steps, value)
+        if bool(done):
+            break
+        if stalled >= 3 and not minimiser:
+            result = optx.RESULTS.successful
+            break
+    else:
+        result = f"did not converge in {max_steps} steps"
+    # The residuals at the solution, from the solver's own state (least-squares solvers keep them).
+    residual = getattr(state.f_info, "residual", None) if not minimiser else None
+    return y, history, steps, result, residual
+
+
+#: Relative change of the loss below which a step counts as not lowering it.
+_STALL = 1e-6
+
+
+def _print_progress(step: int, loss: float) -> None:
+    print(f"  step {step:3d}  loss (rms) {loss:.6g}", flush=True)
+

@@ -1,0 +1,391 @@
+r"""Reading a swatch-card photo: the layout, the camera's calibration, patch statistics.
+
+The layout file (JSON) says where things are, in pixels of the photo as
+displayed (EXIF orientation applied; x to the right, y down; a box is
+`[x0, y0, x1, y1]` with `x0 < x1`, `y0 < y1`, covering pixels `x0 <= x < x1`):
+
+```
+{"paper":   {"box": [x0, y0, x1, y1], "reflectance": [0.92, 0.90, 0.84]},
+ "black":   {"box": [x0, y0, x1, y1]},
+ "patches": [{"box": [x0, y0, x1, y1], "coats": 1, "ground": "paper"},
+             {"box": [...], "coats": 2, "ground": "black"}],
+ "name": "Cadmium Red"}
+```
+
+`paper` is required; its `reflectance` (linear RGB) is optional and defaults to
+diffwash's paper `DEFAULT_PAPER` = (0.92, 0.90, 0.84). `black` (a box of the
+bare black band) is required when a patch lies on black. `coats` is the
+patch's thickness in coats (> 0, may be fractional). `name` is optional (the
+pigment's name). A `meta` object is ignored.
+
+Calibration. The photo is linearised (the sRGB transfer function), then the
+camera is taken to have recorded `gain_c * light(x, y) * reflectance`:
+`light` (vignetting, uneven lighting) is a smooth surface fitted to the bare
+paper visible around the boxes (a low-order polynomial in x and y of log
+brightness, fitted robustly), normalised to 1 over the paper box;
+`gain_c` (exposure and white balance) makes the paper box read its
+`reflectance`.
+
+Patch statistics are trimmed means (the middle 60% of each channel's values)
+over the box shrunk away from its edges (watercolour darkens at its edges, and
+blur and JPEG smear across them); a channel clipped by the camera in most of a
+patch is a bound, not a value, and partly clipped patches weigh less.
+
+**References:**
+
+- S. F. Ray, "Applied Photographic Optics", Focal Press 2002 (illumination
+  falloff).
+- J. W. Tukey, trimmed means; P. J. Huber, "Robust Statistics", Wiley 1981.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .._errors import DiffwashError
+from .._io import finite_number, read_json
+from ..shading import DEFAULT_PAPER
+
+__all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "Calibration", "calibrate", "PatchStats",
+           "patch_stats", "inner_box", "linearise"]  # fmt: skip
+
+GROUNDS = ("paper", "black")
+_LAYOUT_KEYS = {"paper", "black", "patches", "name", "meta"}
+
+
+@dataclass(frozen=True)
+class Box:
+    """A pixel box `[x0, y0, x1, y1)` of the displayed photo."""
+
+    x0: int
+    y0: int
+    x1: int
+    y1: int
+
+    @property
+    def width(self) -> int:
+        return self.x1 - self.x0
+
+    @property
+    def height(self) -> int:
+        return self.y1 - self.y0
+
+    def tolist(self) -> list[int]:
+        return [self.x0, self.y0, self.x1, self.y1]
+
+    def grow(self, d: int) -> "Box":
+        return Box(self.x0 - d, self.y0 - d, self.x1 + d, self.y1 + d)
+
+
+@dataclass(frozen=True)
+class Patch:
+    """A patch of the pigment: its box, thickness in coats, and the ground under it."""
+
+    box: Box
+    coats: float
+    ground: str
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where the paper, the black band and the patches are in the photo."""
+
+    paper: Box
+    paper_reflectance: np.ndarray
+    black: Box | None
+    patches: tuple[Patch, ...]
+    name: str | None = None
+    path: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The layout as layout-file JSON."""
+        out: dict[str, Any] = {"paper": {"box": self.paper.tolist(), "reflectance": self.paper_reflectance.tolist()}}
+        if self.black is not None:
+            out["black"] = {"box": self.black.tolist()}
+        out["patches"] = [{"box": p.box.tolist(), "coats": p.coats, "ground": p.ground} for p in self.patches]
+        if self.name:
+            out["name"] = self.name
+        return out
+
+
+def _fail(msg: str, file: Any, fld: str | None) -> DiffwashError:
+    return DiffwashError(msg, file=file, field=fld)
+
+
+def _box(value: Any, file: Any, fld: str, size: tuple[int, int] | None) -> Box:
+    if not isinstance(value, list) or len(value) != 4 or not all(finite_number(v) for v in value):
+        raise _fail(f"must be [x0, y0, x1, y1] (4 pixel coordinates), got {value!r}", file, fld)
+    if not all(float(v).is_integer() for v in value):
+        raise _fail(f"must be whole pixel coordinates, got {value!r}", file, fld)
+    x0, y0, x1, y1 = (int(v) for v in value)
+    if x1 <= x0 or y1 <= y0:
+        raise _fail(f"is empty: needs x0 < x1 and y0 < y1, got {value!r}", file, fld)
+    if size is not None:
+        w, h = size
+        if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
+            raise _fail(f"{value!r} lies outside the {w}x{h} photo (as displayed, after EXIF orientation)", file, fld)
+    return Box(x0, y0, x1, y1)
+
+
+def _object(obj: dict, key: str, file: Any, keys: set[str]) -> dict:
+    v = obj[key]
+    if not isinstance(v, dict):
+        raise _fail(f"must be a JSON object, got {type(v).__name__}", file, key)
+    for k in v:
+        if k not in keys:
+            raise _fail(f"unknown key (expected {', '.join(sorted(keys))})", file, f"{key}.{k}")
+    if "box" not in v:
+        raise _fail("missing key", file, f"{key}.box")
+    return v
+
+
+def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tuple[int, int] | None = None) -> Layout:
+    """Validate a layout (parsed JSON) against a photo of `size = (width, height)`.
+
+    Errors name the file and the field, e.g. `card.json: patches[2].ground: unknown ground 'white'`.
+    """
+    if not isinstance(data, dict):
+        raise _fail(f"a layout must be a JSON object, got {type(data).__name__}", file, None)
+    for k in data:
+        if k not in _LAYOUT_KEYS:
+            raise _fail(f"unknown key (expected {', '.join(sorted(_LAYOUT_KEYS))})", file, k)
+    if "paper" not in data:
+        raise _fail("missing key: a box of bare paper is needed to calibrate exposure and white balance", file,
+                    "paper")  # fmt: skip
+    paper = _object(data, "paper", file, {"box", "reflectance"})
+    paper_box = _box(paper["box"], file, "paper.box", size)
+    refl = paper.get("reflectance", list(DEFAULT_PAPER))
+    if not isinstance(refl, list) or len(refl) != 3 or not all(finite_number(v) for v in refl):
+        raise _fail(f"must be 3 linear reflectances (red, green, blue), got {refl!r}", file, "paper.reflectance")
+    if not all(0 < v <= 1 for v in refl):
+        raise _fail(f"must be reflectances in (0, 1], got {refl!r}", file, "paper.reflectance")
+    black = None
+    if "black" in data:
+        black = _box(_object(data, "black", file, {"box"})["box"], file, "black.box", size)
+    if "patches" not in data:
+        raise _fail("missing key", file, "patches")
+    items = data["patches"]
+    if not isinstance(items, list) or not items:
+        raise _fail("must be a non-empty list of patches", file, "patches")
+    patches = []
+    for i, p in enumerate(items):
+        where = f"patches[{i}]"
+        if not isinstance(p, dict):
+            raise _fail(f"must be a JSON object, got {type(p).__name__}", file, where)
+        for k in p:
+            if k not in ("box", "coats", "ground"):
+                raise _fail("unknown key (expected box, coats, ground)", file, f"{where}.{k}")
+        for k in ("box", "coats", "ground"):
+            if k not in p:
+                raise _fail("missing key", file, f"{where}.{k}")
+        box = _box(p["box"], file, f"{where}.box", size)
+        coats = p["coats"]
+        if not finite_number(coats) or coats <= 0:
+            raise _fail(f"must be a number of coats > 0, got {coats!r}", file, f"{where}.coats")
+        ground = p["ground"]
+        if ground not in GROUNDS:
+            raise _fail(f"unknown ground {ground!r} (must be 'paper' or 'black')", file, f"{where}.ground")
+        if ground == "black" and black is None:
+            raise _fail("lies on black, but the layout has no 'black' box of bare black to measure it", file,
+                        f"{where}.ground")  # fmt: skip
+        patches.append(Patch(box=box, coats=float(coats), ground=ground))
+    name = data.get("name")
+    if name is not None and (not isinstance(name, str) or not name.strip()):
+        raise _fail("must be a non-empty string", file, "name")
+    return Layout(paper=paper_box, paper_reflectance=np.asarray(refl, np.float64), black=black,
+                  patches=tuple(patches), name=name.strip() if name else None,
+                  path=None if file is None else os.fspath(file))  # fmt: skip
+
+
+def read_layout(path: str | os.PathLike, size: tuple[int, int] | None = None) -> Layout:
+    """Read and validate a layout file (format: module docstring)."""
+    return parse_layout(read_json(path), file=path, size=size)
+
+
+def inner_box(box: Box, fraction: float = 0.15, least: int = 2) -> Box:
+    """The box shrunk on each side by `fraction` of its size (at least `least` pixels, never empty)."""
+    dx = min(max(int(round(fraction * box.width)), least), (box.width - 1) // 2)
+    dy = min(max(int(round(fraction * box.height)), least), (box.height - 1) // 2)
+    return Box(box.x0 + dx, box.y0 + dy, box.x1 - dx, box.y1 - dy)
+
+
+def _trimmed_mean(v: np.ndarray, trim: float = 0.2) -> np.ndarray:
+    """Mean of the middle (1 - 2 trim) of the values along axis 0, per column."""
+    v = np.sort(v, axis=0)
+    n = v.shape[0]
+    k = int(np.floor(trim * n))
+    return v[k : n - k].mean(axis=0) if n - 2 * k > 0 else np.median(v, axis=0)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The camera's response as calibrated from the paper.
+
+    **Fields:**
+
+    - `gain`: per-channel gain (exposure times white balance), shape (3,).
+    - `coefficients`: the light-falloff polynomial's coefficients (log brightness).
+    - `degree`: its degree (0: no falloff correction).
+    - `pixels`: bare-paper pixels it was fitted to.
+    - `light_range`: the smallest and largest relative light over the photo.
+    - `size`: the photo's (width, height).
+    """
+
+    gain: np.ndarray
+    coefficients: np.ndarray
+    degree: int
+    pixels: int
+    light_range: tuple[float, float]
+    size: tuple[int, int]
+    norm: float = 1.0
+    notes: list[str] = field(default_factory=list)
+
+    def light(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """Relative light at pixel centres (ys, xs) (1 on average over the paper box)."""
+        w, h = self.size
+        return np.exp(_poly(xs, ys, w, h, self.degree) @ self.coefficients) / self.norm
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"gain": self.gain.tolist(), "falloff_degree": self.degree, "falloff_pixels": self.pixels,
+                "light_range": list(self.light_range), "notes": list(self.notes)}  # fmt: skip
+
+
+def _poly(xs: np.ndarray, ys: np.ndarray, w: int, h: int, degree: int) -> np.ndarray:
+    """Monomials x^i y^j (i + j <= degree) in coordinates scaled to [-1, 1]."""
+    u = (2 * (np.asarray(xs, np.float64) + 0.5) / w - 1)[..., None]
+    v = (2 * (np.asarray(ys, np.float64) + 0.5) / h - 1)[..., None]
+    cols = [u**i * v**j for i in range(degree + 1) for j in range(degree + 1 - i)]
+    return np.concatenate(cols, axis=-1)
+
+
+def _clip_levels(bits: int) -> tuple[float, float]:
+    top = (1 << bits) - 1
+    return 0.5 / top, 1 - 0.5 / top
+
+
+def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout, *, file: Any = None,
+              degree: int = 2) -> Calibration:  # fmt: skip
+    """Calibrate exposure, white balance and light falloff from the bare paper.
+
+    **Arguments:**
+
+    - `linear`: the photo linearised, (H, W, 3).
+    - `display`: the photo as read (display-encoded), to find clipped pixels.
+    - `bits`: the file's bits per channel.
+    - `layout`: the validated `Layout`.
+    - `degree`: the falloff polynomial's degree (lowered when too little paper
+      is visible).
+
+    **Returns:**
+
+    The `Calibration`. A paper box that is over- or under-exposed raises a
+    `DiffwashError` (the exposure cannot be known from clipped values).
+    """
+    H, W, _ = linear.shape
+    lo_level, hi_level = _clip_levels(bits)
+    pb = inner_box(layout.paper, 0.05, 1)
+    raw = display[pb.y0 : pb.y1, pb.x0 : pb.x1].reshape(-1, 3)
+    clipped = np.mean((raw >= hi_level) | (raw <= lo_level), axis=0)
+    if np.any(clipped > 0.01):
+        c = int(np.argmax(clipped))
+        bright = np.mean(raw[:, c] >= hi_level) >= np.mean(raw[:, c] <= lo_level)
+        kind = "over-exposed (saturated)" if bright else "black"
+        raise _fail(f"the paper box is {kind}: {100 * clipped[c]:.0f}% of its pixels are clipped in "
+                    f"{'red green blue'.split()[c]}, so exposure and white balance cannot be calibrated from it",
+                    file, "paper.box")  # fmt: skip
+    paper_lin = linear[pb.y0 : pb.y1, pb.x0 : pb.x1].reshape(-1, 3)
+    ref = np.median(paper_lin, axis=0)
+    if np.any(ref <= 0):
+        raise _fail("the paper box is black in the photo: nothing to calibrate from", file, "paper.box")
+
+    # Bare paper visible anywhere: outside every box (with a margin), coloured like the paper box.
+    notes = []
+    mask = np.ones((H, W), bool)
+    boxes = [p.box for p in layout.patches] + ([layout.black] if layout.black is not None else [])
+    for b in boxes:
+        g = b.grow(max(3, int(0.15 * min(b.width, b.height))))
+        mask[max(g.y0, 0) : max(g.y1, 0), max(g.x0, 0) : max(g.x1, 0)] = False
+    mask[pb.y0 : pb.y1, pb.x0 : pb.x1] = True
+    step = max(1, int(np.sqrt(H * W / 40000)))  # at most ~40k samples
+    ys, xs = np.mgrid[0:H:step, 0:W:step]
+    ys, xs = ys.ravel(), xs.ravel()
+    keep = mask[ys, xs]
+    ys, xs = ys[keep], xs[keep]
+    ratio = linear[ys, xs] / ref
+    rawv = display[ys, xs]
+    ok = (
+        np.all((rawv < hi_level) & (rawv > lo_level), axis=1)
+        & np.all((ratio > 0.4) & (ratio < 1.6), axis=1)
+        & (ratio.max(axis=1) / np.maximum(ratio.min(axis=1), 1e-6) < 1.2)
+    )
+    ys, xs, y = ys[ok], xs[ok], np.log(np.mean(ratio[ok], axis=1))
+    # Lower the degree until the visible paper spans enough of the photo to support it.
+    span = (np.ptp(xs) / W if len(xs) else 0.0, np.ptp(ys) / H if len(ys) else 0.0)
+    while degree > 0:
+        n_terms = (degree + 1) * (degree + 2) // 2
+        if len(xs) >= 20 * n_terms and min(span) > 0.5:
+            break
+        degree -= 1
+    if degree < 2:
+        notes.append(f"little bare paper visible around the boxes: light falloff modelled to degree {degree}")
+    A = _poly(xs, ys, W, H, degree)
+    use = np.ones(len(y), bool)
+    coef = np.zeros(A.shape[1])
+    for _ in range(4):  # trimmed least squares: drop stains, shadows and stray marks
+        if use.sum() < A.shape[1]:
+            break
+        coef, *_ = np.linalg.lstsq(A[use], y[use], rcond=None)
+        r = y - A @ coef
+        mad = 1.4826 * np.median(np.abs(r[use] - np.median(r[use]))) + 1e-6
+        use = np.abs(r) < 3 * mad
+    cal = Calibration(gain=np.ones(3), coefficients=coef, degree=degree, pixels=int(use.sum()), light_range=(1.0, 1.0),
+                      size=(W, H), norm=1.0, notes=notes)  # fmt: skip
+    pys, pxs = np.mgrid[pb.y0 : pb.y1, pb.x0 : pb.x1]
+    norm = float(np.mean(cal.light(pys.ravel(), pxs.ravel())))
+    gys, gxs = np.mgrid[0:H:step, 0:W:step]
+    light = np.exp(_poly(gxs.ravel(), gys.ravel(), W, H, degree) @ coef) / norm
+    flat = paper_lin / np.exp(_poly(pxs.ravel(), pys.ravel(), W, H, degree) @ coef)[:, None] * norm
+    gain = _trimmed_mean(flat) / layout.paper_reflectance
+    return Calibration(gain=gain, coefficients=coef, degree=degree, pixels=int(use.sum()),
+                       light_range=(float(light.min()), float(light.max())), size=(W, H), norm=norm,
+                       notes=notes)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PatchStats:
+    """Robust statistics of one box of the calibrated photo.
+
+    **Fields:** `rgb` (trimmed mean linear reflectance, (3,)), `spread` (robust
+    standard deviation, (3,)), `clipped_lo`, `clipped_hi` (fraction of the
+    pixels clipped at the bottom / top, per channel), `pixels` (pixels used).
+    """
+
+    rgb: np.ndarray
+    spread: np.ndarray
+    clipped_lo: np.ndarray
+    clipped_hi: np.ndarray
+    pixels: int
+
+
+def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibration, box: Box) -> PatchStats:
+    """Trimmed statistics of the calibrated reflectance inside `box`, away from its edges."""
+    ib = inner_box(box)
+    ys, xs = np.mgrid[ib.y0 : ib.y1, ib.x0 : ib.x1]
+    ys, xs = ys.ravel(), xs.ravel()
+    values = linear[ys, xs] / cal.light(ys, xs)[:, None] / cal.gain
+    raw = display[ys, xs]
+    lo_level, hi_level = _clip_levels(bits)
+    mean = _trimmed_mean(values)
+    mad = np.median(np.abs(values - np.median(values, axis=0)), axis=0) * 1.4826
+    return PatchStats(rgb=mean, spread=mad, clipped_lo=np.mean(raw <= lo_level, axis=0),
+                      clipped_hi=np.mean(raw >= hi_level, axis=0), pixels=len(ys))  # fmt: skip
+
+
+def linearise(display: np.ndarray) -> np.ndarray:
+    """Display sRGB in [0, 1] to linear (the IEC 61966-2-1 transfer function), in numpy."""
+    v = np.asarray(display, np.float64)
+    return np.where(v > 0.04045, ((np.maximum(v, 0.04045) + 0.055) / 1.055) ** 2.4, v / 12.92)

@@ -32,6 +32,7 @@ import functools
 import zlib
 from typing import Any
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -134,15 +135,36 @@ def _canonical_params(params: shading.Params) -> shading.Params:
     )
 
 
-def _shade(vertices, faces, normals, camera, params, vis, both, *, width, height, mode):
-    """Linear RGB of the covered pixels `vis.pixels`: (P, 3), and the clip-space vertices.
+class Surface(eqx.Module):
+    """The geometry shading needs at the covered pixels: what stays fixed while only `Params` change.
 
-    `both` (a traced bool) says whether back faces are drawn; back-facing
-    triangles are then shaded with their normals reversed.
+    Per-pixel shading keeps each pixel's unit normal `N` (turned towards the eye
+    on drawn back faces) and unit direction to the eye `V`; per-vertex shading
+    keeps the vertices' normals and eye directions and, per pixel, its triangle,
+    barycentrics and whether the triangle is a drawn back face (`flip`). The
+    fitters compute it once and shade it at every step.
+    """
+
+    N: Any = None
+    V: Any = None
+    vertex_N: Any = None
+    vertex_V: Any = None
+    faces: Any = None
+    tri: Any = None
+    bary: Any = None
+    flip: Any = None
+    mode: str = eqx.field(static=True, default="per-pixel")
+
+
+def surface(vertices, faces, normals, camera, vis, both, *, width, height, mode) -> tuple[Surface, Array]:
+    """The `Surface` at the covered pixels `vis.pixels`, and the clip-space vertices.
+
+    Differentiable in `vertices`, `normals` and `camera`. `both` (a bool, may be
+    traced) says whether back faces are drawn; back-facing triangles are then
+    shaded with their normals reversed (OpenGL's two-sided lighting).
     """
     dtype = jnp.result_type(vertices, float)
     clip = clip_positions(vertices, camera.view_projection(width / height))
-    L = shading.safe_normalize(jnp.asarray(params.light, dtype))
     eye = jnp.asarray(camera.eye, dtype)
     tri, pixels = vis.pixel_tri, vis.pixels
     bary, front = barycentrics(clip, faces, tri, pixels, width, height)
@@ -151,13 +173,30 @@ def _shade(vertices, faces, normals, camera, params, vis, both, *, width, height
         N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
         N = jnp.where(flip[:, None], -N, N)
         V = shading.safe_normalize(eye - interpolate(vertices, faces, tri, bary))
-        wash, unlit = shading.thicknesses(N, L, V, params)
-    else:
-        V = shading.safe_normalize(eye - vertices)
-        front_v = jnp.stack(shading.thicknesses(normals, L, V, params), axis=1)  # (V, 2)
-        back_v = jnp.stack(shading.thicknesses(-normals, L, V, params), axis=1)
-        thick = jnp.where(flip[:, None], interpolate(back_v, faces, tri, bary), interpolate(front_v, faces, tri, bary))
-        wash, unlit = thick[:, 0], thick[:, 1]
+        return Surface(N=N, V=V, mode=mode), clip
+    V = shading.safe_normalize(eye - vertices)
+    return Surface(vertex_N=normals, vertex_V=V, faces=faces, tri=tri, bary=bary, flip=flip, mode=mode), clip
+
+
+def surface_thicknesses(surf: Surface, params: shading.Params) -> tuple[Array, Array]:
+    """Wash and unlit thickness at the surface's pixels, per pixel or per vertex (then interpolated)."""
+    L = shading.safe_normalize(jnp.asarray(params.light))
+    if surf.mode == "per-pixel":
+        return shading.thicknesses(surf.N, L, surf.V, params)
+    front_v = jnp.stack(shading.thicknesses(surf.vertex_N, L, surf.vertex_V, params), axis=1)  # (V, 2)
+    back_v = jnp.stack(shading.thicknesses(-surf.vertex_N, L, surf.vertex_V, params), axis=1)
+    thick = jnp.where(
+        surf.flip[:, None],
+        interpolate(back_v, surf.faces, surf.tri, surf.bary),
+        interpolate(front_v, surf.faces, surf.tri, surf.bary),
+    )
+    return thick[:, 0], thick[:, 1]
+
+
+def _shade(vertices, faces, normals, camera, params, vis, both, *, width, height, mode):
+    """Linear RGB of the covered pixels `vis.pixels`: (P, 3), and the clip-space vertices."""
+    surf, clip = surface(vertices, faces, normals, camera, vis, both, width=width, height=height, mode=mode)
+    wash, unlit = surface_thicknesses(surf, params)
     return shading.glaze(params, wash, unlit), clip
 
 

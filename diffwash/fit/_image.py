@@ -37,7 +37,6 @@ trade would leave a direction with no information, so one side is held fixed
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 import functools
 import math
@@ -57,6 +56,7 @@ from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import read_image, read_json
 from .._raster import Visibility, rasterize
+from .._render import Surface, surface, surface_thicknesses
 from .. import shading
 from .._scene import Scene, load_scene, parse_scene, save_scene
 from ..pigments import Pigment
@@ -282,57 +282,33 @@ def _make_solver(name: str, rtol: float, atol: float):
 
 
 class _View(eqx.Module):
-    """One view's fixed geometry at its covered pixels, computed once (the geometry is not fitted).
+    """One view's fixed part: the target and the renderer's `Surface` at the covered pixels.
 
-    Per-pixel shading keeps each pixel's normal `N` and direction to the eye `V`; per-vertex shading
-    keeps the vertices' normals and eye directions and each pixel's triangle and barycentrics. Padding
-    entries of the covered-pixel list have `valid = False`.
+    The geometry is not fitted, so the renderer's geometry steps (barycentrics,
+    interpolation) run once per view. Padding entries of the covered-pixel list
+    have `valid = False`.
     """
 
     target: Any
     valid: Any
-    N: Any = None
-    V: Any = None
-    vertex_N: Any = None
-    vertex_V: Any = None
-    faces: Any = None
-    tri: Any = None
-    bary: Any = None
-    front: Any = None
-    mode: str = eqx.field(static=True, default="per-pixel")
-    both: bool = eqx.field(static=True, default=False)
+    surface: Surface
 
 
 def _prepare_view(scene: Scene, vis: Visibility, target: np.ndarray, dtype) -> _View:
-    """The renderer's geometry steps (`diffwash.render`: barycentrics, interpolation), done once."""
     f = lambda a: jnp.asarray(np.asarray(a, dtype))  # noqa: E731
     mesh = scene.mesh
-    camera = jax.tree.map(f, scene.camera)
-    return _geometry(f(mesh.vertices), f(mesh.normals), jnp.asarray(np.asarray(mesh.faces, np.int32)), camera,
-                     jnp.asarray(np.asarray(vis.pixels, np.int32)), jnp.asarray(np.asarray(vis.pixel_tri, np.int32)),
-                     f(np.asarray(target).reshape(-1, 3)), width=scene.width, height=scene.height, mode=scene.shading,
-                     both=not scene.cull_backfaces)  # fmt: skip
+    return _geometry(f(mesh.vertices), f(mesh.normals), jnp.asarray(np.asarray(mesh.faces, np.int32)),
+                     jax.tree.map(f, scene.camera), vis, np.bool_(not scene.cull_backfaces),
+                     f(np.asarray(target).reshape(-1, 3)), width=scene.width, height=scene.height,
+                     mode=scene.shading)  # fmt: skip
 
 
-@functools.partial(jax.jit, static_argnames=("width", "height", "mode", "both"))
-def _geometry(vertices, normals, faces, camera, pixels, tri, target, *, width, height, mode, both) -> _View:
-    from .._barycentric import barycentrics
-    from .._interpolate import interpolate
-    from .._raster import clip_positions
-
+@functools.partial(jax.jit, static_argnames=("width", "height", "mode"))
+def _geometry(vertices, normals, faces, camera, vis, both, target, *, width, height, mode) -> _View:
+    pixels = vis.pixels
     valid = pixels < width * height
-    tgt = target[jnp.where(valid, pixels, 0)]
-    clip = clip_positions(vertices, camera.view_projection(width / height))
-    bary, front = barycentrics(clip, faces, tri, pixels, width, height)
-    eye = camera.eye
-    if mode == "per-pixel":
-        N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
-        if both:
-            N = jnp.where(front[:, None], N, -N)
-        V = shading.safe_normalize(eye - interpolate(vertices, faces, tri, bary))
-        return _View(target=tgt, valid=valid, N=N, V=V, mode="per-pixel", both=both)
-    return _View(target=tgt, valid=valid, vertex_N=normals, vertex_V=shading.safe_normalize(eye - vertices),
-                 faces=faces, tri=tri, bary=bary, front=front, mode="per-vertex", both=both)  # fmt: skip
+    surf, _ = surface(vertices, faces, normals, camera, vis, both, width=width, height=height, mode=mode)
+    return _View(target=target[jnp.where(valid, pixels, 0)], valid=valid, surface=surf)
 
 
 #: The inputs of `_glaze_terms`, in order.
@@ -377,20 +353,8 @@ def _glaze_terms(wash, unlit, Kw, Sw, Ku, Su, paper):
 
 
 def _shade(view: _View, params: Params, varying: tuple[bool, ...] = (True,) * 7) -> Any:
-    """Linear RGB at the view's covered pixels: `diffwash.render`'s shading, from the stored geometry."""
-    L = shading.safe_normalize(jnp.asarray(params.light))
-    if view.mode == "per-pixel":
-        wash, unlit = shading.thicknesses(view.N, L, view.V, params)
-    else:
-        from .._interpolate import interpolate
-
-        wash_v, unlit_v = shading.thicknesses(view.vertex_N, L, view.vertex_V, params)
-        wash = interpolate(wash_v, view.faces, view.tri, view.bary)
-        unlit = interpolate(unlit_v, view.faces, view.tri, view.bary)
-        if view.both:
-            wash_b, unlit_b = shading.thicknesses(-view.vertex_N, L, view.vertex_V, params)
-            wash = jnp.where(view.front, wash, interpolate(wash_b, view.faces, view.tri, view.bary))
-            unlit = jnp.where(view.front, unlit, interpolate(unlit_b, view.faces, view.tri, view.bary))
+    """Linear RGB at the view's covered pixels: `diffwash.render`'s shading of the stored surface."""
+    wash, unlit = surface_thicknesses(view.surface, params)
     inputs = (wash, unlit, params.wash.K, params.wash.S, params.unlit.K, params.unlit.S, params.paper)
     return _glaze(inputs, varying)
 

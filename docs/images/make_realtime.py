@@ -15,7 +15,6 @@ import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 
 import diffwash  # noqa: E402
 from diffwash import lut, preview  # noqa: E402

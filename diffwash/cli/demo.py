@@ -1,8 +1,8 @@
-"""Run diffwash end to end on bundled data and write the results to a folder."""
+"""Run diffwash end to end on bundled data: fit a pigment to a swatch-card photo, fit the shading
+constants to a target image, bake the LUT, export the shaders and the WebGL2 viewer, draw an OpenGL
+frame, and write a one-page report."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 NAME = "demo"
 HELP = "run the whole product on bundled data"
@@ -10,19 +10,13 @@ HELP = "run the whole product on bundled data"
 
 def add_arguments(p) -> None:
     p.add_argument("-o", "--output", default="diffwash-demo", metavar="DIR", help="output folder (default: %(default)s)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
 
 
 def run(args) -> int:
-    from .. import pigments
-    from .._errors import DiffwashError
-    from ..swatches import save_chart
+    from ..demo import main_summary
+    from ..demo import run as run_demo
 
-    out = Path(args.output)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise DiffwashError(f"cannot create the output folder: {e.strerror}", file=out) from None
-    chart = out / "swatches.png"
-    save_chart(chart, list(pigments.library().values()))
-    print(f"wrote {chart}: the 12 seed pigments at 0.25-4 coats over paper and over black")
+    res = run_demo(args.output, progress=not args.quiet)
+    main_summary(res)
     return 0

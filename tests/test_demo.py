@@ -1,0 +1,55 @@
+"""`diffwash demo`, the README's main job: runs cold within 60 s and its fits find what the data hide."""
+
+import json
+import time
+
+import numpy as np
+from PIL import Image
+
+from diffwash import colorimetry, km
+
+
+def test_demo_end_to_end_cold(run_cli, tmp_path):
+    cache = tmp_path / "fresh-jax-cache"  # a first run on a new machine: nothing compiled yet
+    start = time.perf_counter()
+    r = run_cli("demo", "-o", "out", env={"DIFFWASH_CACHE_DIR": str(cache)})
+    elapsed = time.perf_counter() - start
+    assert r.returncode == 0, r.stderr
+    assert elapsed < 60, f"demo took {elapsed:.0f} s cold"
+    out = tmp_path / "out"
+
+    # Progress, then what was written and where to look.
+    assert "[1/6]" in r.stdout and "[6/6]" in r.stdout and "rms residual" in r.stdout
+    assert f"open {(out / 'export' / 'viewer.html').resolve().as_uri()}" in r.stdout
+    for name in ("pigment.json", "swatch-fit.png", "fitted-scene.json", "image-fit.png", "lut.png", "lut.json",
+                 "preview.png", "report.png", "export/viewer.html", "export/mesh.glb", "export/lut.png"):
+        assert (out / name).is_file(), name
+        assert name.split("/")[0] in r.stdout
+    with Image.open(out / "report.png") as im:
+        assert im.size[0] >= 1200 and im.size[1] >= 800
+
+    truth = json.loads((out / "card.json").read_text())["meta"]["pigment"]
+    fitted = json.loads((out / "pigment.json").read_text())
+    assert fitted["fit"]["converged"] and fitted["fit"]["mean_delta_e_2000"] < 1.0
+    # The fitted pigment predicts the true one's colours at coats the card never showed.
+    coats = np.array([0.5, 6.0])[:, None]
+    for ground in (0.9, 0.05):
+        pred = km.over(*km.layer(np.array(fitted["K"]), np.array(fitted["S"]), coats), ground)
+        true = km.over(*km.layer(np.array(truth["K"]), np.array(truth["S"]), coats), ground)
+        de = colorimetry.delta_e_2000(colorimetry.linear_srgb_to_lab(pred), colorimetry.linear_srgb_to_lab(true))
+        assert np.all(np.asarray(de) < 1.5), de
+
+    constants = json.loads((out / "fitted-scene.json").read_text())
+    from diffwash.demo import DATA, FIT
+
+    true_constants = json.loads((DATA / "truth.json").read_text())["constants"]
+    for k in FIT:
+        assert abs(constants[k] - true_constants[k]) <= 0.03 * abs(true_constants[k]) + 0.01, (k, constants[k])
+
+
+def test_demo_output_folder_errors(run_cli, tmp_path):
+    (tmp_path / "file").write_text("not a folder")
+    r = run_cli("demo", "-o", "file/sub")
+    assert r.returncode == 2
+    assert r.stderr.startswith("diffwash: error: file/sub: cannot create the output folder")
+    assert "Traceback" not in r.stderr

@@ -29,6 +29,7 @@ from ._raster import rasterize as rasterize
 from ._render import clear_visibility_cache as clear_visibility_cache
 from ._render import render as render
 from ._render import render_rgba as render_rgba
+from ._render import render_thicknesses as render_thicknesses
 from ._scene import Mesh as Mesh
 from ._scene import Scene as Scene
 from ._scene import load_mesh as load_mesh

@@ -44,7 +44,7 @@ from ._interpolate import interpolate
 from ._raster import Visibility, clip_positions, rasterize
 from .pigments import Pigment
 
-__all__ = ["render", "render_rgba", "clear_visibility_cache"]
+__all__ = ["render", "render_rgba", "render_thicknesses", "clear_visibility_cache"]
 
 _CACHE_SIZE = 4
 _cache: collections.OrderedDict[tuple, Visibility] = collections.OrderedDict()
@@ -286,3 +286,42 @@ def render_rgba(
     same as `render`'s (the paper shows where alpha is 0).
     """
     return _render(scene, params, visibility, antialias, alpha=True)
+
+
+@functools.partial(jax.jit, static_argnames=("width", "height", "mode"))
+def _thickness_kernel(vertices, faces, normals, camera, params, vis, both, *, width, height, mode):
+    surf, _ = surface(vertices, faces, normals, camera, vis, both, width=width, height=height, mode=mode)
+    wash, unlit = surface_thicknesses(surf, params)
+    maps = jnp.zeros((width * height, 2), wash.dtype)
+    maps = maps.at[vis.pixels].set(jnp.stack([wash, unlit], axis=1), mode="drop", unique_indices=True)
+    return maps.reshape(height, width, 2)
+
+
+def render_thicknesses(
+    scene: Any,
+    params: shading.Params | None = None,
+    *,
+    visibility: Visibility | None = None,
+) -> Float[Array, "H W 2"]:
+    """The wash and unlit thickness maps `render` glazes: (H, W, 2), 0 where uncovered.
+
+    The model's intermediate result (what the seed's shader uses as LUT
+    coordinates), for inspection and for sensitivity studies; differentiable
+    like `render`. Arguments as `render`.
+    """
+    if params is None:
+        params = scene.params
+    vis = _visibility(scene, visibility, False)
+    mesh = scene.mesh
+    return _thickness_kernel(
+        mesh.vertices,
+        _int32(mesh.faces),
+        mesh.normals,
+        scene.camera,
+        _canonical_params(params),
+        vis,
+        np.bool_(not scene.cull_backfaces),
+        width=scene.width,
+        height=scene.height,
+        mode=scene.shading,
+    )

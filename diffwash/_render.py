@@ -216,24 +216,22 @@ def _render_kernel(vertices, faces, normals, camera, params, vis, both, *, width
     return image.reshape(height, width, 4)
 
 
+def _kernel_args(scene, params, vis) -> tuple:
+    """The kernels' traced arguments: geometry, camera, canonical params, visibility, back faces drawn."""
+    mesh = scene.mesh
+    both = np.bool_(not scene.cull_backfaces)
+    return mesh.vertices, _int32(mesh.faces), mesh.normals, scene.camera, _canonical_params(params), vis, both
+
+
+def _kernel_statics(scene) -> dict:
+    return {"width": scene.width, "height": scene.height, "mode": scene.shading}
+
+
 def _render(scene, params, visibility, antialias, alpha):
     if params is None:
         params = scene.params
     vis = _visibility(scene, visibility, antialias)
-    mesh = scene.mesh
-    rgba = _render_kernel(
-        mesh.vertices,
-        _int32(mesh.faces),
-        mesh.normals,
-        scene.camera,
-        _canonical_params(params),
-        vis,
-        np.bool_(not scene.cull_backfaces),
-        width=scene.width,
-        height=scene.height,
-        mode=scene.shading,
-        antialias=bool(antialias),
-    )
+    rgba = _render_kernel(*_kernel_args(scene, params, vis), **_kernel_statics(scene), antialias=bool(antialias))
     # One compiled kernel serves both: the slice is free under jit, a small copy otherwise.
     return rgba if alpha else rgba[..., :3]
 
@@ -312,16 +310,4 @@ def render_thicknesses(
     if params is None:
         params = scene.params
     vis = _visibility(scene, visibility, False)
-    mesh = scene.mesh
-    return _thickness_kernel(
-        mesh.vertices,
-        _int32(mesh.faces),
-        mesh.normals,
-        scene.camera,
-        _canonical_params(params),
-        vis,
-        np.bool_(not scene.cull_backfaces),
-        width=scene.width,
-        height=scene.height,
-        mode=scene.shading,
-    )
+    return _thickness_kernel(*_kernel_args(scene, params, vis), **_kernel_statics(scene))

@@ -313,6 +313,30 @@ def ground_pair_start(
 _invert = jax.jit(km.invert_black_white)
 
 
+def paired_start(
+    amount: np.ndarray, ground: np.ndarray, rgb: np.ndarray, paper: np.ndarray, black: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Curtis's inversion (`ground_pair_start`) at every amount seen over both paper and black.
+
+    `ground` holds "paper"/"black" per row. **Returns:** the median (in log) of the
+    per-amount `(K, S)` estimates, or None where no amount was seen over both.
+    """
+    estimates = []
+    if black is not None:
+        for a in np.unique(amount[amount > 0]):
+            on_p = (amount == a) & (ground == "paper")
+            on_b = (amount == a) & (ground == "black")
+            if np.any(on_p) and np.any(on_b):
+                ks = ground_pair_start(rgb[on_p].mean(0), paper, rgb[on_b].mean(0), black, float(a))
+                if ks is not None:
+                    estimates.append(ks)
+    if not estimates:
+        return None
+    K0 = np.exp(np.median([np.log(k) for k, _ in estimates], axis=0))
+    S0 = np.exp(np.median([np.log(s) for _, s in estimates], axis=0))
+    return K0, S0
+
+
 def single_ground_start(amount: np.ndarray, ground: np.ndarray, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A rough (K, S) per unit amount from rows over one kind of ground.
 

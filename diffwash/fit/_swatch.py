@@ -36,7 +36,7 @@ from .._errors import DiffwashError
 from .._io import read_image
 from ..pigments import Pigment
 from ..pigments import save as save_pigments
-from ._kmfit import FitModel, Rows, fit_rows, ground_pair_start, log_sd, pad_rows, predict_jit, single_ground_start
+from ._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
 from ._kmfit import starts_for
 from ._photo import Calibration, Layout, PatchStats, calibrate, linearise, parse_layout, patch_stats, read_layout
 from ._table import delta_e_displayed
@@ -277,20 +277,9 @@ def fit_swatches(
         raise DiffwashError("a patch's colour is not finite", file=layouts[0] if isinstance(layouts[0], str) else None)
 
     # Start: Curtis's inversion from each coat count seen over both grounds, else a rough guess.
-    estimates = []
     gnames = np.array([p.ground for _, p, _ in info])
-    for c in np.unique(amount):
-        on_p = (amount == c) & (gnames == "paper")
-        on_b = (amount == c) & (gnames == "black")
-        if np.any(on_p) and np.any(on_b):
-            ks = ground_pair_start(rgb[on_p].mean(0), paper, rgb[on_b].mean(0), black, float(c))
-            if ks is not None:
-                estimates.append(ks)
-    if estimates:
-        K0 = np.exp(np.median([np.log(k) for k, _ in estimates], axis=0))
-        S0 = np.exp(np.median([np.log(s) for _, s in estimates], axis=0))
-    else:
-        K0, S0 = single_ground_start(amount, grounds, rgb)
+    start = paired_start(amount, gnames, rgb, paper, black)
+    K0, S0 = start if start is not None else single_ground_start(amount, grounds, rgb)
     starts = {k: v[None] for k, v in starts_for(model, K0, S0).items()}
     n, M = len(amount), pad_rows(len(amount))
     pad = lambda a, fill: np.concatenate([a, np.full((M - n,) + a.shape[1:], fill, a.dtype)])[None]  # noqa: E731

@@ -45,7 +45,7 @@ from .._errors import DiffwashError
 from ..pigments import Pigment
 from ..pigments import save as save_pigments
 from ._kmfit import PLAIN, FitModel, Rows, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
-from ._kmfit import ground_pair_start
+from ._kmfit import paired_start
 
 __all__ = ["MeasurementTable", "TableFit", "read_table", "fit_table", "read_ntu_wpsm", "PLAIN", "COLUMNS"]
 
@@ -412,17 +412,9 @@ def _start(
 ) -> dict[str, np.ndarray]:
     """Starting points for one pigment: Curtis's inversion if it was measured over both grounds."""
     amount, ground, rgb = table.amount[ix] / scale, table.ground[ix], table.rgb[ix]
-    estimates = []
-    for a in np.unique(amount[amount > 0]):
-        on_p = (amount == a) & (ground == "paper")
-        on_b = (amount == a) & (ground == "black")
-        if np.any(on_p) and np.any(on_b):
-            ks = ground_pair_start(rgb[on_p].mean(0), table.paper, rgb[on_b].mean(0), table.black, a)
-            if ks is not None:
-                estimates.append(ks)
-    if estimates:
-        K0 = np.exp(np.median([np.log(k) for k, _ in estimates], axis=0))
-        S0 = np.exp(np.median([np.log(s) for _, s in estimates], axis=0))
+    start = paired_start(amount, ground, rgb, table.paper, table.black)
+    if start is not None:
+        K0, S0 = start
     else:
         pos = amount > 0
         if not np.any(pos):

@@ -118,8 +118,18 @@ def _int32(a: Any) -> Any:
     return a.astype(np.int32, copy=False) if isinstance(a, np.ndarray) else jnp.asarray(a, jnp.int32)
 
 
+def _number(x: Any) -> Any:
+    """A Python number as the float64 NumPy scalar a scene file gives (JIT sees one type, not a weak one)."""
+    return np.float64(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else x
+
+
 def _canonical_params(params: shading.Params) -> shading.Params:
-    """The same leaves without names and other static metadata (one compiled kernel for all pigments)."""
+    """The same leaves without names and other static metadata (one compiled kernel for all pigments).
+
+    Python numbers become NumPy float64 scalars, as loaded scenes hold: `replace(params, gain=0.3)`
+    reuses the compiled kernel instead of compiling another for a weakly typed (or integer) leaf.
+    """
+    params = jax.tree.map(_number, params)
     return shading.Params(
         wash=Pigment(K=params.wash.K, S=params.wash.S),
         unlit=Pigment(K=params.unlit.K, S=params.unlit.S),

@@ -198,10 +198,7 @@ def run(folder: str | os.PathLike = "diffwash-demo", *, progress: bool | Callabl
 
 def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, fitted_img: np.ndarray) -> None:
     """One page: the card and its fit, the target and its fit, the LUT and the OpenGL frame."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # not pyplot: the caller's backend (a notebook's) stays as it is
 
     from ._io import atomic_path, read_image
 
@@ -211,7 +208,7 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     target, _ = read_image(res.folder / "target.png")
     from .colorimetry import srgb_encode
 
-    fig = plt.figure(figsize=(16, 10.5), dpi=100)
+    fig = Figure(figsize=(16, 10.5), dpi=100)
     grid = fig.add_gridspec(3, 4, height_ratios=[1, 1, 1], hspace=0.45, wspace=0.25)
     fig.suptitle("diffwash demo: swatch photo -> pigment -> shading fit -> LUT -> real-time shader", fontsize=15)
 
@@ -294,7 +291,6 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     ax.text(0, 1, text, va="top", family="monospace", fontsize=9)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", facecolor="white")
-    plt.close(fig)
 
 
 def main_summary(res: DemoResult, stream: Any = sys.stdout) -> None:

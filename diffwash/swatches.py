@@ -50,10 +50,7 @@ def draw_chart(
     the top of the swatch lies over paper, the bottom over black, with the bare
     grounds on either side.
     """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # the caller's backend (the CLI picks Agg; a notebook its inline one)
 
     paper_srgb = np.clip(np.asarray(colorimetry.srgb_encode(jnp.asarray(paper, float))), 0, 1)
     n, m = len(pigments), len(coats)

@@ -232,6 +232,22 @@ def test_vmap_over_params():
     np.testing.assert_allclose(np.asarray(images[2]), np.asarray(one), atol=1e-12)
 
 
+def test_python_numbers_in_params_reuse_the_compiled_kernel():
+    """`replace(params, gain=0.3)` (a weakly typed Python float, or an int) does not compile another kernel."""
+    from diffwash._render import _render_kernel, _thickness_kernel
+
+    scene = small_scene()
+    diffwash.render(scene)
+    diffwash.render_thicknesses(scene)
+    compiled = _render_kernel._cache_size(), _thickness_kernel._cache_size()
+    for change in ({"gain": 0.3}, {"shininess": 40}, {"bias": 0.45, "k_unlit": 2}):
+        p = dataclasses.replace(scene.params, **change)
+        want = diffwash.render(scene, dataclasses.replace(p, **{k: np.float64(v) for k, v in change.items()}))
+        np.testing.assert_array_equal(np.asarray(diffwash.render(scene, p)), np.asarray(want))
+        diffwash.render_thicknesses(scene, p)
+    assert (_render_kernel._cache_size(), _thickness_kernel._cache_size()) == compiled
+
+
 def test_antialiasing_reuses_the_cached_visibility():
     clear_visibility_cache()
     scene = small_scene()

@@ -64,6 +64,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
+    # The commands draw figures into files only: no GUI backend (matplotlib reads this when first imported).
+    os.environ.setdefault("MPLBACKEND", "Agg")
     parser = _parser()
     args = parser.parse_args(argv)
     try:

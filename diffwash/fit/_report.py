@@ -25,13 +25,12 @@ def _display(linear: Any) -> np.ndarray:
     return np.where(v > 0.0031308, 1.055 * v ** (1 / 2.4) - 0.055, 12.92 * v)
 
 
-def _plt():
-    import matplotlib
+def _figure(**kwargs: Any) -> Any:
+    """A matplotlib `Figure` outside pyplot: no backend is chosen or switched (the caller's, e.g. a
+    notebook's inline plotting, stays as it is) and nothing is left open."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(**kwargs)
 
 
 def _pairs(
@@ -59,12 +58,8 @@ def _pairs(
 
 
 def _save(fig, path: str | os.PathLike) -> None:
-    plt = _plt()
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=110, facecolor="white")
-    finally:
-        plt.close(fig)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110, facecolor="white")
 
 
 def save_swatch_report(path: str | os.PathLike, fit: Any, photo: np.ndarray | None = None, layout: Any = None) -> None:
@@ -77,7 +72,6 @@ def save_swatch_report(path: str | os.PathLike, fit: Any, photo: np.ndarray | No
     - `photo`: the (first) photo as displayed, (H, W, 3) in [0, 1], to show with its boxes.
     - `layout`: that photo's `Layout`.
     """
-    plt = _plt()
     from matplotlib.patches import Rectangle
 
     groups = []
@@ -95,7 +89,7 @@ def save_swatch_report(path: str | os.PathLike, fit: Any, photo: np.ndarray | No
         pred = fit.predict(coats, ground)
         more.append((ground, pred))
     n_cols = max(len(items) for _, items in groups)
-    fig = plt.figure(figsize=(3.2 + 1.0 * max(n_cols, 6), 6.2 if photo is not None else 4.2))
+    fig = _figure(figsize=(3.2 + 1.0 * max(n_cols, 6), 6.2 if photo is not None else 4.2))
     k = fit.pigment
     status = f"converged in {fit.iterations} steps" if fit.converged else f"NOT converged ({fit.iterations} steps)"
     fig.suptitle(f"{k.name}: K = {np.round(k.K, 3).tolist()}, S = {np.round(k.S, 3).tolist()} per coat\n"
@@ -148,7 +142,6 @@ def save_table_report(path: str | os.PathLike, fit: Any, table: Any, held_out: A
     `held_out`, an optional second `MeasurementTable`, is drawn too (its
     captions marked with `*`): rows the fit did not see.
     """
-    plt = _plt()
     groups = []
     for name in fit.names:
         items = []
@@ -165,7 +158,7 @@ def save_table_report(path: str | os.PathLike, fit: Any, table: Any, held_out: A
         items.sort(key=lambda t: (t[1].split("\n")[1], t[0]))
         groups.append((name, [t[1:] for t in items]))
     n_cols = max(len(items) for _, items in groups)
-    fig = plt.figure(figsize=(2.0 + 0.75 * n_cols, 0.6 + 1.3 * len(groups)))
+    fig = _figure(figsize=(2.0 + 0.75 * n_cols, 0.6 + 1.3 * len(groups)))
     ax = fig.add_axes([0.14, 0.02, 0.85, 0.9])
     extra = " (* held out)" if held_out is not None else ""
     _pairs(ax, groups, f"measured (left half) | fitted (right half){extra}; model: "
@@ -181,10 +174,10 @@ def save_image_report(path: str | os.PathLike, fit: Any, targets: Sequence[Any],
     from .._io import read_image
     from .._render import render
 
-    plt = _plt()
     scenes = list(scenes) * (len(targets) if len(scenes) == 1 else 1)
     n = len(targets)
-    fig, axes = plt.subplots(n, 5, figsize=(13, 2.8 * n + 0.4), squeeze=False)
+    fig = _figure(figsize=(13, 2.8 * n + 0.4))
+    axes = fig.subplots(n, 5, squeeze=False)
     for i, (t, sc) in enumerate(zip(targets, scenes)):
         if isinstance(t, (str, os.PathLike)):
             target, _ = read_image(t)

@@ -101,7 +101,7 @@ def run(folder: str | os.PathLike = "diffwash-demo", *, progress: bool | Callabl
     from ._render import render
     from ._scene import load_scene
     from .colorimetry import srgb_encode
-    from .fit._report import save_image_report, save_swatch_report
+    from .fit import save_image_report, save_swatch_report
 
     out: Callable[[str], None] | None
     if progress is True:

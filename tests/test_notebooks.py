@@ -44,7 +44,20 @@ def test_notebook_runs(path, tmp_path, monkeypatch):
     assert not [o for o in _widget_outputs(nb) if o.get("output_type") == "error"], "an error inside a widget"
     images = sum("image/png" in o.get("data", {}) for c in nb.cells for o in c.get("outputs", []))
     assert images >= 1, "a notebook should show its results as figures"
-    assert elapsed < BUDGET_S, f"{path.name} took {elapsed:.0f} s"
+    assert elapsed < BUDGET_S, f"{path.name} took {elapsed:.0f} s; slowest cells: {_slowest_cells(nb)}"
+
+
+def _slowest_cells(nb, n: int = 3) -> str:
+    """The cells that took longest, from nbclient's timing metadata (to say where a slow run went)."""
+    from datetime import datetime
+
+    times = []
+    for i, c in enumerate(nb.cells):
+        ex = c.get("metadata", {}).get("execution", {})
+        if "iopub.execute_input" in ex and "shell.execute_reply" in ex:
+            t0, t1 = (datetime.fromisoformat(ex[k].replace("Z", "+00:00")) for k in ("iopub.execute_input", "shell.execute_reply"))
+            times.append(((t1 - t0).total_seconds(), i))
+    return ", ".join(f"cell {i}: {t:.0f} s" for t, i in sorted(times, reverse=True)[:n])
 
 
 def test_library_figures_leave_the_callers_matplotlib_backend_alone(monkeypatch, tmp_path):
@@ -54,7 +67,7 @@ def test_library_figures_leave_the_callers_matplotlib_backend_alone(monkeypatch,
 
     from diffwash import pigments
     from diffwash.fit import fit_swatches, parse_layout
-    from diffwash.fit._report import save_swatch_report
+    from diffwash.fit import save_swatch_report
     from diffwash.swatchcard import make_swatch_card
 
     def switch(*args, **kwargs):

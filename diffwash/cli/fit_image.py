@@ -88,7 +88,7 @@ def run(args) -> int:
     fit.save(out)
     print(f"wrote {out}")
     if report is not None:
-        from ..fit._report import save_image_report
+        from ..fit import save_image_report
 
         save_image_report(report, fit, args.targets, scenes)
         print(f"wrote {report}")

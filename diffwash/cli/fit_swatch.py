@@ -96,7 +96,7 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
     from .._io import read_image
     from ..fit import fit_swatches
     from ..fit._photo import read_layout
-    from ..fit._report import save_swatch_report
+    from ..fit import save_swatch_report
     from ..fit._swatch import SWATCH_MODEL, FitModel
 
     t0 = time.perf_counter()
@@ -135,7 +135,7 @@ def _run_table(args, out: Path, report: Path | None) -> int:
 
     from ..fit import FitModel, fit_table, read_table
     from ..fit._kmfit import PLAIN
-    from ..fit._report import save_table_report
+    from ..fit import save_table_report
 
     t0 = time.perf_counter()
     base = PLAIN if args.plain else FitModel()

@@ -9,6 +9,9 @@ Three fits, each a thin layer of data handling over optimistix least squares:
 - `fit_image(targets, scenes, fit=...)`: named scene parameters (K, S, gain, bias, thickness
   constants, shininess, light, paper) from target images; `diffwash fit-image`.
 
+Each result has a one-page report figure: `save_swatch_report`, `save_table_report`, `save_image_report`
+(what the CLI's `--report` writes).
+
 Formats, models, gauges and what each fit can identify: docs/fitting.md.
 """
 
@@ -23,6 +26,9 @@ from ._kmfit import FitModel as FitModel
 from ._photo import Layout as Layout
 from ._photo import parse_layout as parse_layout
 from ._photo import read_layout as read_layout
+from ._report import save_image_report as save_image_report
+from ._report import save_swatch_report as save_swatch_report
+from ._report import save_table_report as save_table_report
 from ._swatch import SWATCH_MODEL as SWATCH_MODEL
 from ._swatch import PatchResult as PatchResult
 from ._swatch import SwatchFit as SwatchFit

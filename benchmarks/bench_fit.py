@@ -14,10 +14,11 @@ Prints Markdown tables:
      default CIE94 residuals and with CIEDE2000 residuals;
    - image fit: `diffwash.fit.fit_image` on the sphere scene at 256x256 px, 10 parameters (gain, bias,
      k_wash, k_unlit, shininess, light (2 angles), paper (3)), from a start 20% off (target <= 2 s warm);
-   - table fit: `diffwash.fit.fit_table` on the NTU training amounts (7 paints at once).
+   - table fit: `diffwash.fit.fit_table` on the NTU training amounts (7 paints in one call), with the
+     pigments run in turn (`batch="loop"`, the default on a CPU) and `jax.vmap`ped (`batch="vmap"`).
 2. The command line end to end in a fresh process with an empty compilation cache
    (`DIFFWASH_CACHE_DIR` set to a new temporary folder), including JIT: `diffwash fit-swatch` with
-   `--report` (target <= 10 s), `fit-swatch --table`, `fit-image`; and `fit-swatch` again with the cache
+   `--report` (target <= 10 s), `fit-swatch --table` (loop and vmap), `fit-image`; and `fit-swatch` again with the cache
    now filled.
 3. Accuracy on generated swatch photos: each of the 12 seed pigments on a JPEG card with the default
    camera faults (`diffwash.swatchcard.CameraEffects()`), fitted from its 1, 2 and 4 coat patches,
@@ -159,9 +160,12 @@ def ntu_split(table, first: int):
 
 def bench_table(repeats: int) -> list[tuple]:
     train, _ = ntu_split(read_ntu_wpsm(NTU), 0)
-    warm, comp, fit = timed(lambda: fit_table(train), repeats)
-    return [("table fit, NTU (7 paints x 6 amounts, vmap)", warm, comp, peak_rss_mb(),
-             f"steps {int(np.max(fit.iterations))} max")]  # fmt: skip
+    rows = []
+    for batch, label in (("loop", "pigments in turn (the CPU default)"), ("vmap", "jax.vmap over pigments")):
+        warm, comp, fit = timed(lambda: fit_table(train, batch=batch), repeats)
+        rows.append((f"table fit, NTU (7 paints x 6 amounts), {label}", warm, comp, peak_rss_mb(),
+                     f"steps {int(np.max(fit.iterations))} max"))  # fmt: skip
+    return rows
 
 
 def cli_run(args: list[str], cwd: Path, cache: str) -> float:
@@ -198,6 +202,8 @@ def bench_cli(folder: Path) -> list[tuple]:
         ("diffwash fit-swatch PHOTO --layout --report (cold)",
          ["fit-swatch", "cli.jpg", "--layout", "cli.json", "-o", "p.json", "--report", "r.png"]),
         ("diffwash fit-swatch --table (cold)", ["fit-swatch", "--table", "ntu.csv", "-o", "lib.json"]),
+        ("diffwash fit-swatch --table --batch vmap (cold)",
+         ["fit-swatch", "--table", "ntu.csv", "-o", "lib.json", "--batch", "vmap"]),
         ("diffwash fit-image, 128^2, 3 parameters (cold)",
          ["fit-image", "target.png", "--scene", "start.json", "--fit", "gain,k_unlit,shininess", "-o", "f.json", "--quiet"]),
     ]  # fmt: skip

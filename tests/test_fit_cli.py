@@ -180,6 +180,10 @@ def test_fit_swatch_usage_errors(run_cli, tmp_path, card):
     assert r.returncode == 2 and "--output: must be a .json file" in r.stderr
     r = run_cli("fit-swatch", "missing.jpg", "--layout", "card.json", "-o", "x.json")
     assert r.returncode == 2 and "missing.jpg: no such image file" in r.stderr
+    r = run_cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "x.json", "--batch", "loop")
+    assert r.returncode == 2 and "--batch: only applies to --table fits" in r.stderr
+    r = run_cli("fit-swatch", "--table", "m.csv", "-o", "x.json", "--batch", "threads")
+    assert r.returncode == 2 and "invalid choice" in r.stderr
 
 
 def test_fit_image_bad_input(run_cli, tmp_path):

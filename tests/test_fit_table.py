@@ -174,10 +174,11 @@ def synthetic_table(tmp_path, names, amounts, grounds=("paper", "black")):
     return write(tmp_path, "\n".join(lines) + "\n")
 
 
-def test_fit_table_recovers_every_pigment_at_once(tmp_path):
+@pytest.mark.parametrize("batch", ["vmap", "loop"])
+def test_fit_table_recovers_every_pigment_at_once(tmp_path, batch):
     names = ["Quinacridone Rose", "Cadmium Yellow", "French Ultramarine", "Indian Red"]
     path = synthetic_table(tmp_path, names, (0.5, 1, 2, 4))
-    fit = fit_table(path, linear=True)
+    fit = fit_table(path, linear=True, batch=batch)
     assert fit.names == names and all(fit.converged)
     for p, n, g in zip(fit.pigments, names, fit.gamma):
         truth = pigments.load(n)
@@ -189,6 +190,20 @@ def test_fit_table_recovers_every_pigment_at_once(tmp_path):
     # Fitting one pigment alone gives the same as fitting it in the batch.
     alone = fit_table(read_table(path, linear=True).select(read_table(path, linear=True).pigment == names[1]))
     np.testing.assert_allclose(alone.pigments[0].K, fit.pigments[1].K, rtol=1e-5)
+
+
+def test_vmapped_and_looped_batches_agree(tmp_path):
+    """`batch` changes how the pigments' independent problems run, not their answers."""
+    path = synthetic_table(tmp_path, ["Burnt Umber", "Hansa Yellow", "Cerulean Blue"], (0.5, 1, 3))
+    table = read_table(path, linear=True)
+    fits = {b: fit_table(table, batch=b) for b in ("vmap", "loop", "auto")}
+    for b in ("loop", "auto"):
+        for p, q in zip(fits[b].pigments, fits["vmap"].pigments):
+            np.testing.assert_allclose(p.K, q.K, rtol=1e-7, err_msg=b)
+            np.testing.assert_allclose(p.S, q.S, rtol=1e-7, err_msg=b)
+        assert all(fits[b].converged)
+    with pytest.raises(DiffwashError, match="batch"):
+        fit_table(table, batch="threads")
 
 
 def test_fitted_library_loads_and_predicts(tmp_path):

@@ -32,6 +32,9 @@ def add_arguments(p) -> None:
                    help="residuals (default: cie94 for photos, de2000 for tables)")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
+    p.add_argument("--batch", choices=("auto", "vmap", "loop"),
+                   help="table: pigments vmapped in one program, or one after another (default auto: "
+                        "a loop on a CPU for up to 16 pigments, where it is faster)")  # fmt: skip
     p.add_argument("--max-steps", type=int, default=1000, metavar="N",
                    help="Levenberg-Marquardt steps at most (default: %(default)s)")  # fmt: skip
     p.add_argument("--allow-unconverged", action="store_true", help="write the result even if the fit did not converge")
@@ -69,7 +72,7 @@ def run(args) -> int:
         return _run_table(args, out, report)
     if not args.photos:
         raise DiffwashError("needs a PHOTO and its --layout, or --table CSV", field="PHOTO")
-    for flag in ("plain", "thickness", "surface", "linear"):
+    for flag in ("plain", "thickness", "surface", "linear", "batch"):
         if getattr(args, flag):
             raise DiffwashError("only applies to --table fits", field=f"--{flag}")
     if not args.layout:
@@ -146,7 +149,7 @@ def _run_table(args, out: Path, report: Path | None) -> int:
         prior=base.prior,
     )
     table = read_table(args.table, linear=args.linear)
-    fit = fit_table(table, model=model, max_steps=args.max_steps)
+    fit = fit_table(table, model=model, max_steps=args.max_steps, batch=args.batch or "auto")
     print(f"{len(fit.pigments)} pigments from {len(table)} measurements; model: "
           f"{', '.join(f'{k}={v}' for k, v in model.describe().items())}")  # fmt: skip
     width = max(len("pigment"), *(len(n) for n in fit.names))

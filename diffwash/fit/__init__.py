@@ -4,7 +4,7 @@ Three fits, each a thin layer of data handling over optimistix least squares:
 
 - `fit_swatches(photo, layout)`: one pigment's K and S (per coat) from photos of its swatch card
   (`diffwash.swatchcard` makes synthetic ones); `diffwash fit-swatch PHOTO --layout LAYOUT.json`.
-- `fit_table(csv)`: every pigment of a table of measured colours at once (`jax.vmap`);
+- `fit_table(csv)`: every pigment of a table of measured colours in one call (`jax.vmap`, or a loop);
   `diffwash fit-swatch --table MEASUREMENTS.csv`.
 - `fit_image(targets, scenes, fit=...)`: named scene parameters (K, S, gain, bias, thickness
   constants, shininess, light, paper) from target images; `diffwash fit-image`.

@@ -5,8 +5,8 @@ of (amount of paint, reflectance of the ground under it, observed linear RGB
 reflectance), some channels clipped by the camera or by the sRGB gamut. This
 module fits one pigment's `log K`, `log S` (and optionally the exponent of a
 power law from amount to thickness) to such rows with optimistix's
-Levenberg-Marquardt, and batches it over pigments and starting points with
-`jax.vmap`.
+Levenberg-Marquardt from several starting points, over a batch of pigments
+(`jax.vmap`ped, or one after another where that is faster: `fit_rows`).
 
 The model of one row (amount `a` over a ground of reflectance `R_g`):
 
@@ -43,8 +43,9 @@ import optimistix as optx
 from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .. import colorimetry, km
+from .._errors import DiffwashError
 
-__all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2"]
+__all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2", "BATCH_MODES"]
 
 #: Internal diffuse reflectance of a binder-air surface of refractive index 1.5
 #: for light arriving diffusely from inside (Judd 1942): Saunderson's `k2`.
@@ -382,12 +383,42 @@ class BatchFit(eqx.Module):
     param_names: tuple[str, ...] = eqx.field(static=True)
 
 
-def fit_rows(model: FitModel, rows: Rows, starts: dict[str, np.ndarray], *, max_steps: int = 1000) -> BatchFit:
+#: How `fit_rows` runs a batch of pigments.
+BATCH_MODES = ("auto", "vmap", "loop")
+
+#: With `batch="auto"` on a CPU, batches up to this many pigments run one after another.
+LOOP_MAX_PIGMENTS = 16
+
+
+def batch_mode(batch: str, n_pigments: int) -> str:
+    """`"vmap"` or `"loop"` for `batch` (see `fit_rows`)."""
+    if batch not in BATCH_MODES:
+        raise DiffwashError(f"must be one of {', '.join(BATCH_MODES)}, got {batch!r}", field="batch")
+    if batch != "auto":
+        return batch
+    return "loop" if jax.default_backend() == "cpu" and n_pigments <= LOOP_MAX_PIGMENTS else "vmap"
+
+
+def fit_rows(
+    model: FitModel, rows: Rows, starts: dict[str, np.ndarray], *, max_steps: int = 1000, batch: str = "vmap"
+) -> BatchFit:
     """Fit a batch of pigments to their rows with Levenberg-Marquardt, all at once.
 
     Levenberg-Marquardt runs from each starting point and each pigment keeps
-    its best (lowest loss) solution; pigments are batched with `jax.vmap` (one
-    pigment runs unbatched).
+    its best (lowest loss) solution. The pigments' problems are independent;
+    `batch` says how they run:
+
+    - `"vmap"`: one compiled program, `jax.vmap`ped over the pigments (the
+      way to fit many pigments on an accelerator);
+    - `"loop"`: the unbatched program once per pigment. On a CPU with a few
+      pigments this is the faster of the two, warm and cold: a vmapped
+      `while_loop` steps every pigment until the slowest has converged, and
+      batching the solver's loop costs seconds of tracing and compilation
+      (`benchmarks/bench_fit.py` measures both);
+    - `"auto"`: `"loop"` on a CPU for up to `LOOP_MAX_PIGMENTS` pigments,
+      else `"vmap"`.
+
+    One pigment always runs unbatched.
 
     **Arguments:**
 
@@ -411,15 +442,16 @@ def fit_rows(model: FitModel, rows: Rows, starts: dict[str, np.ndarray], *, max_
     # Levenberg-Marquardt from every start (one compiled program, called once per start), keeping
     # each pigment's best: a fit from a single start can stop in a poor local minimum, or on a
     # plateau where float32 steps look converged.
-    fn = _compiled(model, max_steps, P > 1)
+    vmapped = P > 1 and batch_mode(batch, P) == "vmap"
+    fn = _compiled(model, max_steps, vmapped)
     runs = []
     for s in range(n_starts):
         theta0 = {k: v[:, s] for k, v in starts.items()}
-        if P == 1:
-            out = fn(jax.tree.map(lambda a: a[0], rows), {k: v[0] for k, v in theta0.items()})
-            out = jax.tree.map(lambda a: jnp.asarray(a)[None], out)
-        else:
+        if vmapped:
             out = fn(rows, theta0)
+        else:
+            each = [fn(jax.tree.map(lambda a: a[p], rows), {k: v[p] for k, v in theta0.items()}) for p in range(P)]
+            out = jax.tree.map(lambda *a: np.stack([np.asarray(x) for x in a]), *each)
         runs.append(out)
     losses = np.stack([np.asarray(r[1]) for r in runs])  # (starts, P)
     best = np.argmin(np.where(np.isfinite(losses), losses, np.inf), axis=0)

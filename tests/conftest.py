@@ -21,6 +21,29 @@ ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "data"
 
 
+def knot_scene(mesh: str, width: int, height: int, shading: str = "per-pixel", **extra):
+    """The tests' knot scene: a torus knot of `data/meshes/`, rose wash, ultramarine unlit glaze,
+    constants away from their defaults (so every term of the model shows)."""
+    from diffwash._scene import parse_scene
+
+    data = {
+        "mesh": mesh,
+        "image": {"width": width, "height": height},
+        "camera": {"eye": [0.4, 0.6, 3.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 45},
+        "light": {"direction": [1.0, 1.2, 0.8]},
+        "shading": shading,
+        "wash": {"pigment": "Quinacridone Rose"},
+        "unlit": {"pigment": "French Ultramarine"},
+        "shininess": 15,
+        "k_unlit": 1.3,
+        "gain": 0.65,
+        "bias": 0.4,
+        "wash_reduction": 0.35,
+        **extra,
+    }
+    return parse_scene(data, base=DATA / "meshes")
+
+
 @pytest.fixture
 def run_cli(tmp_path):
     """Run the real `diffwash` entry point (`python -m diffwash`) in a subprocess.

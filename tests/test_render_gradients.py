@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import diffwash
-from diffwash._scene import Mesh, Scene, parse_scene
+from diffwash._scene import Mesh, Scene
 
-from conftest import DATA
+from conftest import knot_scene
 
 W, H = 40, 32
 PARAMS = ["wash.K", "wash.S", "unlit.K", "unlit.S", "paper", "light", "k_wash", "k_specular", "shininess",
@@ -23,22 +23,7 @@ PARAMS = ["wash.K", "wash.S", "unlit.K", "unlit.S", "paper", "light", "k_wash", 
 
 @functools.cache
 def small_scene(shading: str = "per-pixel", backfaces: str = "auto") -> Scene:
-    data = {
-        "mesh": "knot-1k.ply",
-        "image": {"width": W, "height": H},
-        "camera": {"eye": [0.4, 0.6, 3.0], "target": [0.0, 0.0, 0.0], "fov_y": 45},
-        "light": {"direction": [1.0, 1.2, 0.8]},
-        "shading": shading,
-        "backfaces": backfaces,
-        "wash": {"pigment": "Quinacridone Rose"},
-        "unlit": {"pigment": "French Ultramarine"},
-        "shininess": 15,
-        "k_unlit": 1.3,
-        "gain": 0.65,
-        "bias": 0.4,
-        "wash_reduction": 0.35,
-    }
-    return parse_scene(data, base=DATA / "meshes")
+    return knot_scene("knot-1k.ply", W, H, shading, backfaces=backfaces)
 
 
 def _weights(shape, seed=0):

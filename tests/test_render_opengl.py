@@ -16,9 +16,9 @@ import pytest
 import scipy.ndimage
 
 import diffwash
-from diffwash._scene import Mesh, Scene, parse_scene
+from diffwash._scene import Mesh, Scene
 
-from conftest import DATA
+from conftest import DATA, knot_scene
 from gl_reference import create, gl_render, look_at, srgb8
 
 
@@ -64,21 +64,7 @@ def compare(gl, scene: Scene) -> tuple[float, float, int]:
 
 
 def _knot_scene(shading: str) -> Scene:
-    data = {
-        "mesh": "knot-10k.ply",
-        "image": {"width": 200, "height": 150},
-        "camera": {"eye": [0.4, 0.6, 3.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 45},
-        "light": {"direction": [1.0, 1.2, 0.8]},
-        "shading": shading,
-        "wash": {"pigment": "Quinacridone Rose"},
-        "unlit": {"pigment": "French Ultramarine"},
-        "shininess": 15,
-        "k_unlit": 1.3,
-        "gain": 0.65,
-        "bias": 0.4,
-        "wash_reduction": 0.35,
-    }
-    return parse_scene(data, base=DATA / "meshes")
+    return knot_scene("knot-10k.ply", 200, 150, shading)
 
 
 def _cut_knot_scene() -> Scene:

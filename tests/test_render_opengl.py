@@ -113,6 +113,7 @@ def _ground_scene() -> Scene:
 @pytest.mark.parametrize("shading", ["per-pixel", "per-vertex"])
 def test_knot_matches_opengl(gl, shading):
     psnr, iou, n = compare(gl, _knot_scene(shading))
+    print(f"knot 10k, {shading}: PSNR {psnr:.1f} dB, IoU {iou:.4f}, {n} pixels")  # the figure, with -s
     assert n > 5000
     assert iou >= 0.98, iou
     assert psnr >= 40, psnr

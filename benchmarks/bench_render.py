@@ -53,6 +53,23 @@ def timed(fn, repeats: int) -> dict:
 # Workers (each runs in its own process and prints one JSON object).
 
 
+def gradient_problem(scene):
+    """The timed gradient: `jit(value_and_grad)` of an image MSE against a dimmed render, w.r.t. all shading params."""
+    import jax
+    import jax.numpy as jnp
+
+    import diffwash
+
+    target = diffwash.render(scene) * 0.95
+
+    @jax.jit
+    @jax.value_and_grad
+    def loss_and_grad(params):
+        return jnp.mean((diffwash.render(scene, params) - target) ** 2)
+
+    return loss_and_grad
+
+
 def worker_jax(args) -> dict:
     import jax
     import jax.numpy as jnp
@@ -83,13 +100,7 @@ def worker_jax(args) -> dict:
     )
     out["rss_forward"] = current_rss_mb() - base
 
-    target = diffwash.render(scene) * 0.95
-
-    @jax.jit
-    @jax.value_and_grad
-    def loss_and_grad(params):
-        return jnp.mean((diffwash.render(scene, params) - target) ** 2)
-
+    loss_and_grad = gradient_problem(scene)
     t0 = time.perf_counter()
     jax.block_until_ready(loss_and_grad(scene.params))
     out["compile_grad"] = time.perf_counter() - t0
@@ -122,19 +133,12 @@ def worker_jax(args) -> dict:
 def worker_grad(args) -> dict:
     """Forward and forward + gradient only (run again under different XLA flags)."""
     import jax
-    import jax.numpy as jnp
 
     import diffwash
 
     scene = diffwash.load_scene(args.scene)
     vis = diffwash.rasterize(scene)
-    target = diffwash.render(scene) * 0.95
-
-    @jax.jit
-    @jax.value_and_grad
-    def loss_and_grad(params):
-        return jnp.mean((diffwash.render(scene, params) - target) ** 2)
-
+    loss_and_grad = gradient_problem(scene)
     jax.block_until_ready(loss_and_grad(scene.params))
     jax.block_until_ready(diffwash.render(scene, visibility=vis))
     return {
@@ -185,7 +189,6 @@ def _gl_setup(scene):
 def worker_compare(args) -> dict:
     """diffwash, OpenGL and Mitsuba alternating in rounds in one process."""
     import jax
-    import jax.numpy as jnp
     import numpy as np
 
     import diffwash
@@ -193,12 +196,7 @@ def worker_compare(args) -> dict:
     scene = diffwash.load_scene(args.scene)
     out = {"notes": {}}
     vis = diffwash.rasterize(scene)
-    target = diffwash.render(scene) * 0.95
-
-    @jax.jit
-    @jax.value_and_grad
-    def loss_and_grad(params):
-        return jnp.mean((diffwash.render(scene, params) - target) ** 2)
+    loss_and_grad = gradient_problem(scene)
 
     tasks = {
         "diffwash forward": lambda: jax.block_until_ready(diffwash.render(scene, visibility=vis)),

@@ -52,15 +52,7 @@ from diffwash.fit import PLAIN, FitModel, fit_image, fit_swatches, fit_table, re
 from diffwash.swatchcard import make_swatch_card, save_swatch_card  # noqa: E402
 
 
-def shared(*parts: str) -> Path:
-    for base in (ROOT.parent, ROOT.parent.parent):
-        p = base.joinpath("shared", *parts)
-        if p.exists():
-            return p
-    raise SystemExit(f"shared/{'/'.join(parts)} not found beside {ROOT}")
-
-
-NTU = shared("data", "ntu-wpsm", "primaries-P1-P7.csv")
+NTU = ROOT / "data" / "ntu-wpsm" / "primaries-P1-P7.csv"  # shipped with the repository
 
 
 def peak_rss_mb() -> float:

@@ -16,16 +16,7 @@ from diffwash.fit._kmfit import effective, ground_pair_start, log_sd, residuals,
 from diffwash.fit._table import CLIP_LO, delta_e_displayed
 
 
-def shared_data(*parts):
-    """`shared/...` beside the repository (a clean clone sits next to shared/), or one level further up."""
-    for base in (ROOT.parent, ROOT.parent.parent):
-        p = base.joinpath("shared", *parts)
-        if p.exists():
-            return p
-    raise FileNotFoundError(f"shared/{'/'.join(parts)} not found beside {ROOT} (the CI checkout sits next to shared/)")
-
-
-NTU = shared_data("data", "ntu-wpsm", "primaries-P1-P7.csv")
+NTU = ROOT / "data" / "ntu-wpsm" / "primaries-P1-P7.csv"  # shipped with the repository (data/ntu-wpsm/README.md)
 
 
 # --- the CIEDE2000 residuals the fits use -------------------------------------------------------------------

@@ -1,0 +1,276 @@
+r"""Hatching for a pen-and-wash unlit glaze: a tonal art map (Praun et al. 2001).
+
+A *tonal art map* (TAM) is a set of hatch images of increasing tone, each
+given at every mip level. Two nestings make it blend without artefacts:
+
+- *tone nesting*: every stroke of a tone is also in all darker tones, so
+  blending two neighbouring tones only adds strokes, never moves them;
+- *resolution nesting*: every stroke of a mip level is also in all finer
+  levels, drawn with the same width in texels of each level (so on screen
+  the strokes keep their width as the object recedes, instead of being
+  filtered into grey).
+
+`tonal_art_map` builds one as Praun et al. do: for each level from the
+coarsest, for each tone from the lightest, it starts from the union of the
+strokes of the lighter tone (same level) and the coarser level (same tone),
+and adds strokes until the image's mean ink coverage reaches the tone. The
+lighter half of the tones hatches in one direction, the darker half adds the
+cross direction, as pen-and-ink illustrators do.
+
+Eight tones are packed in two RGBA images per level (Praun et al. pack six in
+two RGB textures); the ink of a tone value `tau` in [0, 1] blends the two
+nearest tones (tone 0 is blank paper): `hatch_ink`. The texture coordinates
+are a triplanar projection of object-space positions (`triplanar_weights`),
+so the hatching sticks to the surface without a parametrisation, and the mip
+level is computed from the pixel's footprint on the surface (`hatch_lod`),
+the same number in JAX and in the shader (`textureLod`), rather than from the
+screen-space derivatives a GPU would use.
+
+**References:**
+
+- E. Praun, H. Hoppe, M. Webb and A. Finkelstein, "Real-Time Hatching",
+  SIGGRAPH 2001, secs. 3-4.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from ._gl import float_literal
+
+__all__ = [
+    "TONES",
+    "TAM_LEVELS",
+    "tonal_art_map",
+    "hatch_lod",
+    "sample_level",
+    "sample_tam",
+    "tone_weights",
+    "hatch_ink",
+    "triplanar_weights",
+    "triplanar_uv",
+    "hatch_samples",
+    "glsl_hatching",
+]
+
+#: Tones of the map (tone 0, blank paper, is implicit): packed in two RGBA images.
+TONES = 8
+#: Mip levels of the map, finest first (256, 128, 64, 32, 16 texels).
+TAM_LEVELS = 5
+_TRIPLANAR_SHARPNESS = 4.0
+_CANDIDATES = 8
+
+
+def _ink_along(img: np.ndarray, stroke: tuple[float, float, float, float]) -> float:
+    """The mean ink of `img` along a stroke (16 points, wrapping), to compare candidate places."""
+    n = img.shape[0]
+    x, y, a, ln = stroke
+    s = np.linspace(-0.5, 0.5, 16) * ln
+    px = np.mod(np.floor((x + s * math.cos(a)) * n), n).astype(int)
+    py = np.mod(np.floor((y + s * math.sin(a)) * n), n).astype(int)
+    return float(img[py, px].mean())
+
+
+def _draw_stroke(img: np.ndarray, x0: float, y0: float, angle: float, length: float, width: float) -> None:
+    """Add an antialiased straight stroke (coverage combined by max), wrapping around the tile."""
+    n = img.shape[0]
+    c, s = math.cos(angle), math.sin(angle)
+    pad = width + 1.5
+    half = length / 2
+    ext_x = abs(c) * half + abs(s) * pad
+    ext_y = abs(s) * half + abs(c) * pad
+    xs = np.arange(math.floor(x0 - ext_x), math.ceil(x0 + ext_x) + 1)
+    ys = np.arange(math.floor(y0 - ext_y), math.ceil(y0 + ext_y) + 1)
+    X, Y = np.meshgrid(xs + 0.5, ys + 0.5)
+    u = (X - x0) * c + (Y - y0) * s  # along the stroke
+    v = -(X - x0) * s + (Y - y0) * c  # across
+    taper = np.clip(half - np.abs(u), 0, 1)  # antialiased ends
+    across = np.clip(width / 2 + 0.5 - np.abs(v), 0, 1)  # antialiased sides
+    cov = taper * across
+    r = np.mod(ys, n)[:, None]
+    q = np.mod(xs, n)[None, :]
+    np.maximum.at(img, (np.broadcast_to(r, cov.shape), np.broadcast_to(q, cov.shape)), cov)
+
+
+def tonal_art_map(
+    *,
+    size: int = 256,
+    levels: int = TAM_LEVELS,
+    tones: int = TONES,
+    max_ink: float = 0.8,
+    width: float = 1.2,
+    length: float = 0.45,
+    angle: float = math.radians(60.0),
+    seed: int = 0,
+) -> list[np.ndarray]:
+    """A tonal art map: `levels` mip levels of `tones` nested hatch images.
+
+    **Arguments:**
+
+    - `size`: the finest level's side (a power of two); level `l` is `size / 2^l`.
+    - `levels`: how many levels (finest first).
+    - `tones`: how many tones; tone `k` (1-based) has mean ink `k / tones * max_ink`.
+    - `width`: stroke width, in texels of every level.
+    - `length`: stroke length, as a fraction of the tile.
+    - `angle`: the hatching direction (radians); the darker half of the tones
+      adds strokes at `angle + 90 degrees`.
+    - `seed`: the random seed.
+
+    **Returns:**
+
+    A list (finest first) of `(n_l, n_l, tones)` float32 ink coverages in [0, 1].
+    """
+    rng = np.random.default_rng(seed)
+    sizes = [size >> l for l in range(levels)]
+    if sizes[-1] < 4 or size & (size - 1):
+        raise ValueError(f"size must be a power of two with {levels} levels of at least 4 texels, got {size}")
+    targets = [k / tones * max_ink for k in range(1, tones + 1)]
+    # strokes[t] holds every stroke (as fractions of the tile) added for tone <= t at any level so far.
+    strokes: list[list[tuple[float, float, float, float]]] = [[] for _ in range(tones)]
+    out = [np.zeros((n, n, tones), np.float32) for n in sizes]
+    for li in range(levels - 1, -1, -1):  # coarsest first
+        n = sizes[li]
+        img = np.zeros((n, n))
+        for t in range(tones):
+            for st in strokes[t]:  # strokes of lighter tones and coarser levels
+                _draw_stroke(img, st[0] * n, st[1] * n, st[2], st[3] * n, width)
+            cross = t >= tones // 2
+            tries = 0
+            while img.mean() < targets[t] and tries < 20000:
+                tries += 1
+                a = angle + (math.pi / 2 if cross and rng.random() < 0.5 else 0.0) + rng.normal(0, 0.05)
+                # Of a few candidate places, the one where the image is lightest (Praun et al. pick the
+                # candidate that best evens out the tone), so strokes spread out instead of clumping.
+                cands = [(rng.random(), rng.random(), a, length * rng.uniform(0.7, 1.0)) for _ in range(_CANDIDATES)]
+                st = min(cands, key=lambda c: _ink_along(img, c))
+                _draw_stroke(img, st[0] * n, st[1] * n, st[2], st[3] * n, width)
+                for later in range(t, tones):
+                    strokes[later].append(st)
+            out[li][..., t] = img
+    return out
+
+
+def hatch_lod(pixel_size: Float[ArrayLike, "*b"], texels_per_unit: float, levels: int = TAM_LEVELS) -> Float[Array, "*b"]:
+    """The mip level for a pixel covering `pixel_size` object units: `log2(pixel_size * texels_per_unit)`, in [0, levels - 1]."""
+    x = jnp.asarray(pixel_size) * texels_per_unit
+    ok = x > 0
+    lod = jnp.log2(jnp.where(ok, x, 1.0))
+    return jnp.clip(jnp.where(ok, lod, 0.0), 0.0, levels - 1.0)
+
+
+def sample_level(image: Float[ArrayLike, "n n C"], uv: Float[ArrayLike, "*b 2"]) -> Float[Array, "*b C"]:
+    """Bilinear sample with wrap-around (GL_REPEAT) at `uv` (texture coordinates, `[0, 1)` per tile)."""
+    image = jnp.asarray(image)
+    n = image.shape[0]
+    t = jnp.asarray(uv) * n - 0.5
+    i0 = jnp.floor(t)
+    f = t - i0
+    i0 = i0.astype(jnp.int32)
+    x0, y0 = jnp.mod(i0[..., 0], n), jnp.mod(i0[..., 1], n)
+    x1, y1 = jnp.mod(x0 + 1, n), jnp.mod(y0 + 1, n)
+    fx, fy = f[..., 0:1], f[..., 1:2]
+    top = image[y0, x0] * (1 - fx) + image[y0, x1] * fx
+    bottom = image[y1, x0] * (1 - fx) + image[y1, x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def sample_tam(tam: list, uv: Float[ArrayLike, "*b 2"], lod: Float[ArrayLike, "*b"]) -> Float[Array, "*b C"]:
+    """Trilinear sample of the map at `uv` and mip level `lod` (as `textureLod` with LINEAR_MIPMAP_LINEAR)."""
+    lod = jnp.asarray(lod)
+    top = len(tam) - 1
+    l0 = jnp.clip(jnp.floor(lod), 0, top)
+    f = (jnp.clip(lod, 0, top) - l0)[..., None]
+    samples = [sample_level(level, uv) for level in tam]
+    stack = jnp.stack(samples, axis=0)  # (L, *b, C)
+    i0 = l0.astype(jnp.int32)
+    i1 = jnp.minimum(i0 + 1, top)
+    a = jnp.take_along_axis(stack, i0[None, ..., None], axis=0)[0]
+    b = jnp.take_along_axis(stack, i1[None, ..., None], axis=0)[0]
+    return a * (1 - f) + b * f
+
+
+def tone_weights(tau: Float[ArrayLike, "*b"], tones: int = TONES) -> Float[Array, "*b T"]:
+    """Weights of the `tones` images for a tone value `tau` in [0, 1]: the two nearest tones, linearly.
+
+    Tone `k` (1-based) sits at `k / tones`; tone 0 is blank paper (no image).
+    Differentiable in `tau` (piecewise linear).
+    """
+    x = jnp.clip(jnp.asarray(tau), 0.0, 1.0) * tones
+    k = jnp.arange(1, tones + 1, dtype=x.dtype)
+    return jnp.clip(1 - jnp.abs(x[..., None] - k), 0.0, 1.0)
+
+
+def hatch_ink(samples: Float[ArrayLike, "*b T"], tau: Float[ArrayLike, "*b"]) -> Float[Array, "*b"]:
+    """The ink at tone `tau`: the map's samples (all tones) blended by `tone_weights`."""
+    samples = jnp.asarray(samples)
+    return jnp.sum(samples * tone_weights(tau, samples.shape[-1]), axis=-1)
+
+
+def triplanar_weights(normal: Float[ArrayLike, "*b 3"]) -> Float[Array, "*b 3"]:
+    """Blend weights of the three axis projections: `|n_i|^4`, normalised (sharp, so strokes rarely mix)."""
+    a = jnp.abs(jnp.asarray(normal)) ** _TRIPLANAR_SHARPNESS
+    return a / jnp.maximum(jnp.sum(a, axis=-1, keepdims=True), 1e-12)
+
+
+def glsl_hatching(tones: int = TONES, levels: int = TAM_LEVELS, size: int = 256) -> str:
+    """GLSL of the hatching: two RGBA mipmapped TAM textures, triplanar, explicit LOD.
+
+    Uniforms: `look_tam0`, `look_tam1` (tones 1-4 and 5-8, REPEAT, LINEAR_MIPMAP_LINEAR,
+    levels 0..levels-1), `look_hatch_scale` (texels of level 0 per object unit).
+    `look_hatch_samples(P, N, pixel_size, out h0, out h1)`: the ink of every tone
+    (`hatch_samples`); `look_tone_weights(tau, 0.0)` and `(tau, 4.0)` weight them.
+    """
+    if tones != 8:
+        raise ValueError("the shader packs exactly 8 tones in two RGBA textures")
+    return f"""\
+// ---- Hatching: a tonal art map (diffwash/look/_hatching.py, after Praun et al. 2001) ---------------
+uniform sampler2D look_tam0;        // tones 1-4 (ink coverage), mip levels 0..{levels - 1} built with nested strokes
+uniform sampler2D look_tam1;        // tones 5-8
+uniform float look_hatch_scale;     // texels of level 0 per object unit
+
+vec4 look_tone_weights(float tau, float base) {{
+    float x = clamp(tau, 0.0, 1.0) * {float_literal(tones)};
+    return clamp(1.0 - abs(vec4(x) - (vec4(1.0, 2.0, 3.0, 4.0) + base)), 0.0, 1.0);
+}}
+
+// The map's ink of all 8 tones at object-space point P (normal N), for a pixel covering pixel_size
+// object units: triplanar projection, explicit level of detail.
+void look_hatch_samples(vec3 P, vec3 N, float pixel_size, out vec4 h0, out vec4 h1) {{
+    float x = pixel_size * look_hatch_scale;
+    float lod = x > 0.0 ? clamp(log2(x), 0.0, {float_literal(levels - 1)}) : 0.0;
+    vec3 a = pow(abs(N), vec3({float_literal(_TRIPLANAR_SHARPNESS)}));
+    a /= max(a.x + a.y + a.z, 1e-12);
+    vec3 q = P * (look_hatch_scale / {float_literal(size)});   // texture coordinates: level 0 is {size} texels
+    h0 = a.x * textureLod(look_tam0, q.yz, lod) + a.y * textureLod(look_tam0, q.zx, lod) + a.z * textureLod(look_tam0, q.xy, lod);
+    h1 = a.x * textureLod(look_tam1, q.yz, lod) + a.y * textureLod(look_tam1, q.zx, lod) + a.z * textureLod(look_tam1, q.xy, lod);
+}}
+"""
+
+
+def triplanar_uv(P: Float[ArrayLike, "*b 3"], scale: float, size: int = 256) -> tuple[Array, Array, Array]:
+    """Texture coordinates of the three projections (x: `(y, z)`, y: `(z, x)`, z: `(x, y)`) at `scale` texels per unit."""
+    q = jnp.asarray(P) * (scale / size)
+    return q[..., 1:3], jnp.stack([q[..., 2], q[..., 0]], axis=-1), q[..., 0:2]
+
+
+def hatch_samples(
+    tam: list, P: Float[ArrayLike, "*b 3"], N: Float[ArrayLike, "*b 3"], pixel_size: Float[ArrayLike, "*b"], scale: float
+) -> Float[Array, "*b T"]:
+    """The map's ink of every tone at object points `P` with normals `N`: triplanar, explicit LOD.
+
+    `pixel_size`: each pixel's footprint in object units (e.g. eye depth times
+    `2 tan(fov_y / 2) / height`); `scale`: texels of level 0 per object unit.
+    `glsl_hatching`'s `look_hatch_samples` is its twin; `hatch_ink(samples, tau)`
+    then blends the two tones nearest `tau`.
+    """
+    lod = hatch_lod(pixel_size, scale, len(tam))
+    w = triplanar_weights(N)
+    size = tam[0].shape[0]
+    out = 0.0
+    for k, uv in enumerate(triplanar_uv(P, scale, size)):
+        out = out + w[..., k : k + 1] * sample_tam(tam, uv, lod)
+    return out

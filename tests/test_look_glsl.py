@@ -167,7 +167,7 @@ def test_mix_lut_lookup(ctx):
 
 def test_surface_terms(ctx):
     rng = _rng(5)
-    look = _look.Look(shadow=0.6, hatching=0.45, strokes=0.3)
+    look = _look.Look(shadow=0.6, hatching=0.45)
     t = rng.uniform(0, 1.2, (H, W, 2))
     extra = np.stack([rng.uniform(0, 1, (H, W)), rng.normal(0, 1, (H, W)), np.zeros((H, W)), np.zeros((H, W))], -1)
     hatch = rng.uniform(0, 1, (H, W, 8))
@@ -178,16 +178,16 @@ def test_surface_terms(ctx):
         + """void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec4 e = texelFetch(ex, p, 0);
-    o = vec4(look_surface(texelFetch(th, p, 0).rg, 1.3, e.x, texelFetch(h0, p, 0), texelFetch(h1, p, 0), e.y), 0.0, 0.0);
+    o = vec4(look_surface(texelFetch(th, p, 0).rg, 1.3, e.x, texelFetch(h0, p, 0), texelFetch(h1, p, 0)), 0.0, 0.0);
 }
 """
     )
     f32 = lambda a: a.astype(np.float32)  # noqa: E731
     tex = {"th": _gl.texture(ctx, f32(np.concatenate([t, 0 * t], -1))), "ex": _gl.texture(ctx, f32(extra)),
            "h0": _gl.texture(ctx, f32(hatch[..., :4])), "h1": _gl.texture(ctx, f32(hatch[..., 4:]))}  # fmt: skip
-    out = _gl.run_fullscreen(ctx, frag, (W, H), textures=tex, uniforms={"look_shadow": 0.6, "look_hatching": 0.45, "look_strokes": 0.3})
+    out = _gl.run_fullscreen(ctx, frag, (W, H), textures=tex, uniforms={"look_shadow": 0.6, "look_hatching": 0.45})
     g = lambda a: f32(a).astype(np.float64)  # noqa: E731
-    w, u = _look.surface_terms(g(t[..., 0]), g(t[..., 1]), look, unlit_max=1.3, shadow=g(extra[..., 0]), hatch=g(hatch), stroke=g(extra[..., 1]))
+    w, u = _look.surface_terms(g(t[..., 0]), g(t[..., 1]), look, unlit_max=1.3, shadow=g(extra[..., 0]), hatch=g(hatch))
     np.testing.assert_allclose(out[..., 0], w, rtol=2e-6, atol=1e-6)
     np.testing.assert_allclose(out[..., 1], u, rtol=2e-6, atol=1e-6)
 
@@ -197,12 +197,12 @@ def test_final_pass_matches_compose(ctx):
     rng = _rng(6)
     screen = _textures.screen_textures(shape=(16, 12), seed=3)
     pigs = _look.Pigments(*(_paper.pigment_look(p, screen.paper) for p in (PIGMENT, PIGMENT_B, PIGMENT_B, PIGMENT)))
-    look = _look.Look(edge_darkening=2.0, edge_width=2.0, granulation=0.8, density=0.3, turbulence=0.2, dispersion=0.1, paper_shading=0.2)
+    look = _look.Look(edge_darkening=2.0, edge_width=2.0, granulation=0.8, density=0.3, turbulence=0.2, dispersion=0.1, paper_shading=0.2, strokes=0.25)
     g = np.zeros((H, W, 4), np.float32)
     g[3:20, 2:17, 0] = rng.uniform(0.2, 1.0, (17, 15))
     g[3:20, 2:17, 1] = rng.uniform(0.0, 1.0, (17, 15))
     g[3:20, 2:17, 2] = rng.uniform(0.0, 1.0, (17, 15))
-    g[3:20, 2:17, 3] = 1
+    g[3:20, 2:17, 3] = rng.normal(0, 1, (17, 15))  # the stroke layer
     params = Params(wash=PIGMENT, unlit=PIGMENT_B)
     glaze = lambda p, w, u, m: _mix.glaze_mix(p, PIGMENT_B, PIGMENT, w, u, m)  # noqa: E731
     wash_max = unlit_max = 4.0  # the darkened, granulated thickness stays inside the table
@@ -224,3 +224,61 @@ def test_final_pass_matches_compose(ctx):
     np.testing.assert_allclose(out, want, atol=2e-3)  # the 3D LUT's fixed-point filter weights (see test_mix_lut_lookup)
     exact = _look.compose(g.astype(np.float64), _textures.tile(screen, H, W).astype(jnp.float64), look, pigs, lambda w, u, m: glaze(params, w, u, m))
     assert float(np.max(np.abs(out - np.asarray(exact)))) < 0.03  # a coarse 32 x 32 x 8 table over [0, 4]
+
+
+def _sources(target):
+    """Every look shader for `target`, complete (`#version` first), as (name, kind, source)."""
+    head = _gl.header(target)
+    out = [("fullscreen", "vertex", head + _gl.FULLSCREEN_VERTEX)]
+    for name, body in _edges.glsl_edge_passes().items():
+        out.append((name, "fragment", head + body))
+    out.append(("final", "fragment", head + _look.glsl_final_pass()))
+    vert, frag = _shadow.glsl_depth_pass()
+    out += [("depth", "vertex", head + vert), ("depth", "fragment", head + frag)]
+    surface = (
+        "in vec3 P; in vec3 N; in vec2 t; layout(location = 0) out vec4 o;\n"
+        + _look.glsl_surface()
+        + "void main() { vec4 h0, h1; look_hatch_samples(P, N, 0.01, h0, h1);"
+        " o = vec4(look_surface(t, 1.0, look_shadow_factor(P, N), h0, h1), 0.0, 0.0); }\n"
+    )
+    out.append(("surface", "fragment", head + surface))
+    return out
+
+
+def test_every_shader_compiles_as_glsl330(ctx):
+    for name, kind, src in _sources("glsl330"):
+        if kind == "fragment":
+            vert = _sources("glsl330")[0][2] if name != "depth" else _gl.header("glsl330") + _shadow.glsl_depth_pass()[0]
+            if name == "surface":
+                vert = _gl.header("glsl330") + "out vec3 P; out vec3 N; out vec2 t; void main() { P = vec3(0.0); N = vec3(0.0, 0.0, 1.0); t = vec2(0.0); gl_Position = vec4(0.0); }\n"
+            ctx.program(vertex_shader=vert, fragment_shader=src).release()
+
+
+def test_every_shader_compiles_as_webgl2():
+    """The same sources with the WebGL2 header, compiled by Chromium's WebGL2 (SwiftShader): GLSL ES 3.00."""
+    from playwright.sync_api import sync_playwright
+
+    from test_viewer import CHROMIUM, CHROMIUM_ARGS
+
+    sources = [{"name": n, "kind": k, "src": s} for n, k, s in _sources("webgl2")]
+    js = """(sources) => {
+        const gl = document.createElement('canvas').getContext('webgl2');
+        if (!gl) return [['webgl2', 'no context']];
+        const errors = [];
+        for (const s of sources) {
+            const sh = gl.createShader(s.kind === 'vertex' ? gl.VERTEX_SHADER : gl.FRAGMENT_SHADER);
+            gl.shaderSource(sh, s.src);
+            gl.compileShader(sh);
+            if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) errors.push([s.name + ' ' + s.kind, gl.getShaderInfoLog(sh)]);
+        }
+        return errors;
+    }"""
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page()
+            page.set_content("<html><body></body></html>")
+            errors = page.evaluate(js, sources)
+        finally:
+            browser.close()
+    assert errors == [], errors

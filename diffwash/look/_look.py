@@ -3,17 +3,22 @@ r"""The watercolour look as a pipeline of array operators, in the order the rend
 **1. Surface terms** (per shaded point, where the renderer computes the
 model's wash and unlit thickness; the geometry pass of a shader):
 `surface_terms` thickens the unlit glaze in the object's own shadow
-(`_shadow`), turns it into hatching for a pen-and-wash style (`_hatching`),
-and multiplies both glazes by the brush-stroke layer (`_strokes`).
+(`_shadow`) and turns it into hatching for a pen-and-wash style
+(`_hatching`).
 
-**2. The G-buffer**: per pixel `(wash, unlit, mix, coverage)`, `(H, W, 4)`,
-zero where nothing is drawn (row 0 at the top, as every diffwash image).
+**2. The G-buffer**: per pixel `(wash, unlit, mix, stroke)`, `(H, W, 4)`:
+the thicknesses, the pigment mix and the brush-stroke value (`_strokes`, a
+per-vertex attribute interpolated like the normals), all zero where nothing
+is drawn (row 0 at the top, as every diffwash image). Coverage is not needed
+here (bare paper is thickness 0); the renderer keeps its own alpha.
 
 **3. Image terms** (`image_terms`, full-screen passes of a shader): edge
 darkening (`_edges`, the only neighbourhood operator: a separable blur at
-reduced resolution), then per pixel the paper's granulation, staining and
-density for each glaze's pigment mixture, and the turbulence and dispersion
-of the pigment (`_paper`), all as factors on the thickness.
+reduced resolution) of the smooth thicknesses, then per pixel the brush
+strokes, the paper's granulation, staining and density for each glaze's
+pigment mixture, and the turbulence and dispersion of the pigment
+(`_paper`), all as factors on the thickness. Strokes come after the edge
+darkening so that the edges are the wash's, not every stroke's.
 
 **4. Glaze**: the Kubelka-Munk glazes of the (mixed) pigments over the
 paper (`_mix.glaze_mix`, or its 3D LUT `_mix.lookup_mix_lut`; with no mix map,
@@ -66,7 +71,7 @@ DEFAULT_LOOK: dict[str, float] = {
     "turbulence": 0.18,
     "dispersion": 0.08,
     "paper_shading": 0.08,
-    "strokes": 0.15,
+    "strokes": 0.12,
     "shadow": 0.7,
     "shadow_bias": DEFAULT_BIAS,
     "hatching": 0.0,
@@ -134,25 +139,23 @@ def surface_terms(
     unlit_max: Float[ArrayLike, ""],
     shadow: Float[ArrayLike, "*b"] | None = None,
     hatch: Float[ArrayLike, "*b T"] | None = None,
-    stroke: Float[ArrayLike, "*b"] | None = None,
 ) -> tuple[Float[Array, "*b"], Float[Array, "*b"]]:
-    r"""Shadow, hatching and brush strokes on the model's thicknesses at shaded points.
+    r"""Shadow and hatching on the model's thicknesses at shaded points.
 
     $$ u_1 = u + k_\text{shadow}\, s\, (u_\max - u), \qquad
-       u_2 = u_1 + k_\text{hatching} (u_\max\, \mathrm{ink}(u_1 / u_\max) - u_1), $$
-    $$ (w', u') = (w, u_2) \exp(k_\text{strokes}\, b), $$
+       u' = u_1 + k_\text{hatching} (u_\max\, \mathrm{ink}(u_1 / u_\max) - u_1), $$
 
-    with `s` the shadow factor (`_shadow.shadow`), `ink(tau)` the tonal art
-    map's ink at tone `tau` (`hatch`: the map's samples of every tone at the
-    point, `_hatching.sample_tam`) and `b` the interpolated stroke value. Each
-    term is skipped when its input is None.
+    with `s` the shadow factor (`_shadow.shadow`) and `ink(tau)` the tonal
+    art map's ink at tone `tau` (`hatch`: the map's samples of every tone at
+    the point, `_hatching.hatch_samples`). Each term is skipped when its input
+    is None; the wash is unchanged.
 
     **Arguments:**
 
     - `wash`, `unlit`: the model's thicknesses (`diffwash.shading.thicknesses`).
     - `look`: the `Look`.
     - `unlit_max`: the model's largest unlit thickness (`params.k_unlit`).
-    - `shadow`, `hatch`, `stroke`: see above.
+    - `shadow`, `hatch`: see above.
     """
     w, u = jnp.asarray(wash), jnp.asarray(unlit)
     if shadow is not None:
@@ -161,9 +164,6 @@ def surface_terms(
         ok = unlit_max > 0
         tau = jnp.where(ok, u / jnp.where(ok, unlit_max, 1.0), 0.0)
         u = u + look.hatching * (unlit_max * hatch_ink(hatch, tau) - u)
-    if stroke is not None:
-        f = stroke_factor(stroke, look.strokes)
-        w, u = w * f, u * f
     return w, u
 
 
@@ -174,11 +174,16 @@ def _lerp(a: Array, b: Array, t: Array) -> Array:
 def image_terms(
     gbuffer: Float[ArrayLike, "H W 4"], screen: Float[ArrayLike, "H W 6"], look: Look, pigments: Pigments
 ) -> Float[Array, "H W 2"]:
-    """Edge darkening, then granulation, staining, density and unevenness, on the G-buffer's thicknesses.
+    r"""Edge darkening, then strokes, granulation, staining, density and unevenness, on the G-buffer's thicknesses.
+
+    $$ t' = \mathrm{edge}(t)\ \exp(k_\text{strokes} b)\ \mathrm{lerp}(F_a(h), F_b(h), m)\ \exp(k_t n_t + k_d n_d) $$
+
+    per glaze, `F` the pigment factors (`_paper.pigment_factor`) of the
+    glaze's two pigments, `m` the mix, `b` the stroke value, `h` the paper.
 
     **Arguments:**
 
-    - `gbuffer`: `(wash, unlit, mix, coverage)` per pixel.
+    - `gbuffer`: `(wash, unlit, mix, stroke)` per pixel.
     - `screen`: the screen textures tiled over the image (`_textures.tile`).
     - `look`: the `Look`.
     - `pigments`: the four pigments' `PigmentLook`.
@@ -193,8 +198,9 @@ def image_terms(
     h, m = s[..., 0], g[..., 2]
     fw = _lerp(pigment_factor(h, pigments.wash, look.granulation, look.density), pigment_factor(h, pigments.wash_b, look.granulation, look.density), m)
     fu = _lerp(pigment_factor(h, pigments.unlit, look.granulation, look.density), pigment_factor(h, pigments.unlit_b, look.granulation, look.density), m)
-    w = t[..., 0] * fw * unevenness_factor(s[..., 2], s[..., 3], look.turbulence, look.dispersion)
-    u = t[..., 1] * fu * unevenness_factor(s[..., 4], s[..., 5], look.turbulence, look.dispersion)
+    b = stroke_factor(g[..., 3], look.strokes)
+    w = t[..., 0] * b * fw * unevenness_factor(s[..., 2], s[..., 3], look.turbulence, look.dispersion)
+    u = t[..., 1] * b * fu * unevenness_factor(s[..., 4], s[..., 5], look.turbulence, look.dispersion)
     return jnp.stack([w, u], axis=-1)
 
 
@@ -246,27 +252,26 @@ def look_uniforms(look: Look, pigments: Pigments, *, factor: int = EDGE_DOWNSAMP
 
 
 def glsl_surface() -> str:
-    """GLSL of `surface_terms` for a geometry pass, with the shadow, hatching and stroke functions it calls.
+    """GLSL of `surface_terms` for a geometry pass, with the shadow and hatching functions it calls.
 
-    `vec2 look_surface(vec2 t, float unlit_max, float shadow, vec4 hatch0, vec4 hatch1, float stroke)`.
+    `vec2 look_surface(vec2 t, float unlit_max, float shadow, vec4 hatch0, vec4 hatch1)`; the pass
+    writes `vec4(look_surface(...), mix, stroke)` to the G-buffer.
     """
     return (
         glsl_shadow()
         + "\n"
         + glsl_hatching()
-        + "\n"
-        + glsl_strokes()
         + """
 // ---- Surface terms (diffwash/look/_look.py: surface_terms) -----------------------------------------
 uniform float look_shadow;     // how far the unlit glaze thickens in the object's own shadow
 uniform float look_hatching;   // how far the unlit glaze becomes hatching
 
-vec2 look_surface(vec2 t, float unlit_max, float shadow, vec4 hatch0, vec4 hatch1, float stroke) {
+vec2 look_surface(vec2 t, float unlit_max, float shadow, vec4 hatch0, vec4 hatch1) {
     float u = t.y + look_shadow * shadow * (unlit_max - t.y);
     float tau = unlit_max > 0.0 ? u / unlit_max : 0.0;
     float ink = dot(hatch0, look_tone_weights(tau, 0.0)) + dot(hatch1, look_tone_weights(tau, 4.0));
     u = u + look_hatching * (unlit_max * ink - u);
-    return vec2(t.x, u) * look_stroke_factor(stroke);
+    return vec2(t.x, u);
 }
 """
     )
@@ -275,7 +280,7 @@ vec2 look_surface(vec2 t, float unlit_max, float shadow, vec4 hatch0, vec4 hatch
 def glsl_final_pass(*, colour: str = "mix", factor: int = EDGE_DOWNSAMPLE) -> str:
     """The final full-screen pass (no `#version` line): G-buffer -> image terms -> glaze -> paper shading.
 
-    Reads `look_gbuffer` (RGBA float: wash, unlit, mix, coverage; `texelFetch`
+    Reads `look_gbuffer` (RGBA float: wash, unlit, mix, stroke; `texelFetch`
     at the fragment), `look_screen0` / `look_screen1` (the screen tile,
     `ScreenTextures.rgba()`), `look_edge_blurred` (`glsl_edge_passes`' output).
     `uniform int look_flip_rows` says whether the G-buffer's rows run bottom
@@ -291,7 +296,7 @@ def glsl_final_pass(*, colour: str = "mix", factor: int = EDGE_DOWNSAMPLE) -> st
 #ifndef LOOK_OUTPUT_SRGB
 #define LOOK_OUTPUT_SRGB 0
 #endif
-uniform sampler2D look_gbuffer;    // wash, unlit, mix, coverage (full resolution)
+uniform sampler2D look_gbuffer;    // wash, unlit, mix, stroke (full resolution)
 uniform sampler2D look_screen0;    // paper height, paper shade, turbulence (wash), dispersion (wash)
 uniform sampler2D look_screen1;    // turbulence (unlit), dispersion (unlit)
 uniform int look_flip_rows;        // 1: the G-buffer's row 0 is the image's bottom row
@@ -303,6 +308,7 @@ uniform vec4 look_unlit_pigment_b;
 layout(location = 0) out vec4 look_colour;
 """
         + glsl_paper()
+        + glsl_strokes()
         + glsl_edge_darkening(factor)
         + glsl_mix_lut()
         + """
@@ -323,8 +329,9 @@ void main() {
     float m = g.b;
     float fw = mix(look_pigment_factor(s0.x, look_wash_pigment), look_pigment_factor(s0.x, look_wash_pigment_b), m);
     float fu = mix(look_pigment_factor(s0.x, look_unlit_pigment), look_pigment_factor(s0.x, look_unlit_pigment_b), m);
-    float w = t.x * fw * look_unevenness_factor(s0.z, s0.w);
-    float u = t.y * fu * look_unevenness_factor(s1.x, s1.y);
+    float b = look_stroke_factor(g.a);
+    float w = t.x * b * fw * look_unevenness_factor(s0.z, s0.w);
+    float u = t.y * b * fu * look_unevenness_factor(s1.x, s1.y);
     vec3 c = look_paper_shading_apply(look_mix_colour(w, u, m), s0.y);
 #if LOOK_OUTPUT_SRGB
     c = look_srgb_encode(c);

@@ -49,6 +49,7 @@ __all__ = [
     "stroke_factor",
     "glsl_strokes",
     "mean_edge_length",
+    "subdivide",
 ]
 
 _HASH_SIZE = 1 << 20
@@ -214,6 +215,31 @@ def stroke_field(
     s = s - s.mean()
     sd = s.std()
     return (s / sd if sd > 0 else s).astype(np.float32)
+
+
+def subdivide(
+    vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, *, max_edge: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split every triangle into four until the mean edge is at most `max_edge`, without changing the shape.
+
+    Midpoint subdivision keeps the surface exactly (new vertices lie on the old
+    triangles) and interpolates the normals linearly, unnormalised, so per-pixel
+    shading (which interpolates normals and renormalises them) is unchanged;
+    only the vertex attributes it carries, like the stroke layer, gain detail.
+    For a coarse mesh (`knot-1k.ply`) this is what makes the stroke layer
+    readable.
+
+    **Returns:**
+
+    `(vertices, faces, normals)` of the finer mesh.
+    """
+    import trimesh
+
+    v, f, n = np.asarray(vertices, np.float64), np.asarray(faces, np.int64), np.asarray(normals, np.float64)
+    while mean_edge_length(v, f) > max_edge:
+        v, f, attrs = trimesh.remesh.subdivide(v, f, vertex_attributes={"normals": n})
+        n = attrs["normals"]
+    return v, f, n
 
 
 def stroke_factor(stroke: Float[ArrayLike, "*b"], amplitude: Float[ArrayLike, ""]) -> Float[Array, "*b"]:

@@ -207,9 +207,9 @@ def test_final_pass_matches_compose(ctx):
     glaze = lambda p, w, u, m: _mix.glaze_mix(p, PIGMENT_B, PIGMENT, w, u, m)  # noqa: E731
     wash_max = unlit_max = 4.0  # the darkened, granulated thickness stays inside the table
     table = _mix.bake_mix_lut(glaze, params, (32, 32, 8), wash_max=wash_max, unlit_max=unlit_max)
-    uni = _look.look_uniforms(look, pigs)
-    f = _edges.EDGE_DOWNSAMPLE
-    passes = _edges.glsl_edge_passes()
+    uni = _look.look_uniforms(look, pigs, height=H)
+    f = _edges.edge_downsample(H)
+    passes = _edges.glsl_edge_passes(f)
     lw, lh = -(-W // f), -(-H // f)
     low = _gl.run_fullscreen(ctx, passes["downsample"], (lw, lh), textures={"look_source": _gl.texture(ctx, g)})
     low = _gl.run_fullscreen(ctx, passes["blur_rows"], (lw, lh), textures={"look_source": _gl.texture(ctx, low)}, uniforms=uni)
@@ -218,7 +218,7 @@ def test_final_pass_matches_compose(ctx):
     tex = {"look_gbuffer": _gl.texture(ctx, g), "look_screen0": _gl.texture(ctx, s0), "look_screen1": _gl.texture(ctx, s1),
            "look_edge_blurred": _gl.texture(ctx, low, linear=True), "look_mix_lut": _gl.texture3d(ctx, table)}  # fmt: skip
     uni = {**uni, "look_flip_rows": 0, "look_rows": H, "lut_wash_max": wash_max, "lut_unlit_max": unlit_max}
-    out = _gl.run_fullscreen(ctx, _look.glsl_final_pass(), (W, H), textures=tex, uniforms=uni)[..., :3]
+    out = _gl.run_fullscreen(ctx, _look.glsl_final_pass(height=H), (W, H), textures=tex, uniforms=uni)[..., :3]
     lut = lambda w, u, m: _mix.lookup_mix_lut(table.astype(np.float64), w, u, m, wash_max=wash_max, unlit_max=unlit_max)  # noqa: E731
     want = _look.compose(g.astype(np.float64), _textures.tile(screen, H, W).astype(jnp.float64), look, pigs, lut)
     np.testing.assert_allclose(out, want, atol=2e-3)  # the 3D LUT's fixed-point filter weights (see test_mix_lut_lookup)
@@ -232,7 +232,7 @@ def _sources(target):
     out = [("fullscreen", "vertex", head + _gl.FULLSCREEN_VERTEX)]
     for name, body in _edges.glsl_edge_passes().items():
         out.append((name, "fragment", head + body))
-    out.append(("final", "fragment", head + _look.glsl_final_pass()))
+    out.append(("final", "fragment", head + _look.glsl_final_pass(height=512)))
     vert, frag = _shadow.glsl_depth_pass()
     out += [("depth", "vertex", head + vert), ("depth", "fragment", head + frag)]
     surface = (

@@ -197,3 +197,18 @@ def test_shadow_gradients_in_positions_and_light():
     dl = jnp.asarray(rng.normal(size=3))
     assert_close_rel(jnp.sum(gl * dl), central_difference(lambda x: loss(P, x), light, dl, 1e-7))
     assert float(jnp.max(jnp.abs(gP))) > 0
+
+
+@pytest.mark.parametrize("factor", [2, 4])
+def test_edge_gradients_at_reduced_resolution(factor):
+    """Strength and width through the reduced-resolution blur (as at 512^2 and 1024^2)."""
+    rng = np.random.default_rng(7)
+    t = np.zeros((34, 30, 2))
+    t[5:28, 4:25] = rng.uniform(0.3, 1.0, (23, 21, 2))
+    t = jnp.asarray(t)
+    wts = jnp.asarray(rng.uniform(0.5, 1.5, t.shape))
+    loss = jax.jit(lambda k, s: jnp.sum(wts * _edges.edge_darkening(t, k, s, factor=factor)))
+    gk, gs = jax.jit(jax.grad(loss, argnums=(0, 1)))(jnp.asarray(1.5), jnp.asarray(3.0))
+    assert_close_rel(gk, central_difference(lambda k: loss(k, 3.0), 1.5, 1.0, 1e-6))
+    assert_close_rel(gs, central_difference(lambda s: loss(1.5, s), 3.0, 1.0, 1e-6))
+    assert abs(float(gs)) > 0

@@ -20,10 +20,12 @@ generated here from the same constants (docs/watercolour.md):
 """
 
 from ._edges import EDGE_DOWNSAMPLE as EDGE_DOWNSAMPLE
+from ._edges import EDGE_GRID as EDGE_GRID
 from ._edges import EDGE_RADIUS as EDGE_RADIUS
 from ._edges import blur as blur
 from ._edges import downsample as downsample
 from ._edges import edge_darkening as edge_darkening
+from ._edges import edge_downsample as edge_downsample
 from ._edges import gaussian_weights as gaussian_weights
 from ._edges import gaussian_weights_np as gaussian_weights_np
 from ._edges import glsl_edge_darkening as glsl_edge_darkening
@@ -65,11 +67,14 @@ from ._paper import paper_shading as paper_shading
 from ._paper import pigment_factor as pigment_factor
 from ._paper import pigment_look as pigment_look
 from ._paper import unevenness_factor as unevenness_factor
+from ._shadow import SHADOW_MAP_SIZE as SHADOW_MAP_SIZE
+from ._shadow import SHADOW_TAPS as SHADOW_TAPS
 from ._shadow import glsl_depth_pass as glsl_depth_pass
 from ._shadow import glsl_shadow as glsl_shadow
 from ._shadow import light_clip as light_clip
 from ._shadow import light_depth as light_depth
 from ._shadow import light_view_projection as light_view_projection
+from ._shadow import normal_offset as normal_offset
 from ._shadow import shadow as shadow
 from ._strokes import glsl_strokes as glsl_strokes
 from ._strokes import principal_directions as principal_directions

@@ -20,7 +20,8 @@ does, and cheaply, the blur is fixed-radius, separable and evaluated at a
 reduced resolution:
 
 1. `downsample`: the mean of each `f x f` block of pixels (the image padded by
-   repeating its last row and column), `f = EDGE_DOWNSAMPLE`;
+   repeating its last row and column), `f = edge_downsample(height)` (2 at
+   512^2, 4 at 1024^2: the grid is about 256 pixels tall);
 2. `blur`: a separable Gaussian of $\sigma / f$ low-resolution pixels with
    `2 EDGE_RADIUS + 1` taps per axis, clamped to the edge, weights normalised
    (`gaussian_weights`; $\sigma = 0$ gives the identity);
@@ -45,6 +46,9 @@ weights are multiples of `1 / (2 f)`, exact on any GPU).
 
 from __future__ import annotations
 
+import math
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
@@ -54,6 +58,8 @@ from ._gl import float_literal
 __all__ = [
     "EDGE_RADIUS",
     "EDGE_DOWNSAMPLE",
+    "EDGE_GRID",
+    "edge_downsample",
     "gaussian_weights",
     "gaussian_weights_np",
     "downsample",
@@ -65,10 +71,25 @@ __all__ = [
     "glsl_edge_darkening",
 ]
 
-#: Taps on each side of the centre in the separable blur (2 * EDGE_RADIUS + 1 per axis).
-EDGE_RADIUS = 6
-#: The blur runs on a grid this many times coarser than the image, in each direction.
+#: Taps on each side of the centre in the separable blur (2 * EDGE_RADIUS + 1 per axis): enough for a
+#: sigma of 1.6 low-resolution pixels at 2.5 sigma, i.e. edge widths up to 3 (256^2 image) to 13
+#: (2048^2) pixels; wider edges are cut off.
+EDGE_RADIUS = 4
+#: The blur runs on a grid this many times coarser than the image, in each direction, for a 512^2
+#: image (`edge_downsample` gives it for any size).
 EDGE_DOWNSAMPLE = 2
+#: The blur's grid is about this many pixels tall, whatever the image's size (so its cost is too).
+EDGE_GRID = 256
+
+
+def edge_downsample(height: int) -> int:
+    """The blur's reduction for an image `height` pixels tall: the power of two nearest `height / 256`, at least 1.
+
+    512 -> 2, 1024 -> 4, 2048 -> 8, 256 or less -> 1: the blur always runs on a grid about
+    `EDGE_GRID` pixels tall, so it costs the same at any resolution (on llvmpipe a half-resolution
+    blur at 1024^2 alone took two thirds of the plain model's frame time).
+    """
+    return 1 << max(0, round(math.log2(max(height, 1) / EDGE_GRID)))
 
 
 def gaussian_weights(sigma: Float[ArrayLike, ""], radius: int = EDGE_RADIUS) -> Float[Array, " n"]:
@@ -112,8 +133,9 @@ def downsample(x: Float[ArrayLike, "H W *C"], factor: int = EDGE_DOWNSAMPLE) -> 
     h, w = _low_size(H, factor), _low_size(W, factor)
     pad = [(0, h * factor - H), (0, w * factor - W)] + [(0, 0)] * (x.ndim - 2)
     x = jnp.pad(x, pad, mode="edge")
-    x = x.reshape(h, factor, w, factor, *x.shape[2:])
-    return x.mean(axis=(1, 3))
+    # A sum of strided slices (elementwise work for XLA; a reshape-and-mean lays the data out badly).
+    total = sum(x[a::factor, b::factor] for a in range(factor) for b in range(factor))
+    return total * (1.0 / (factor * factor))
 
 
 def _blur_axis(x: Array, weights: Array, axis: int) -> Array:
@@ -143,13 +165,28 @@ def blur(x: Float[ArrayLike, "h w *C"], sigma: Float[ArrayLike, ""], radius: int
     return _blur_axis(_blur_axis(x, w, 1), w, 0)
 
 
-def _bilinear_taps(n_out: int, n_low: int, factor: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per output index: the two low-resolution indices and the weight of the second (GL's clamp to edge)."""
-    t = (np.arange(n_out) + 0.5) / factor - 0.5
-    i0 = np.floor(t)
-    frac = t - i0
-    i1 = i0 + 1
-    return np.clip(i0, 0, n_low - 1).astype(np.int32), np.clip(i1, 0, n_low - 1).astype(np.int32), frac
+def _upsample_axis(x: Array, n_out: int, factor: int, axis: int) -> Array:
+    """Bilinear upsampling along one axis at the pixel centres, clamped to the edge (static slices, no gather).
+
+    Output `f i + k` sits at low-resolution coordinate `i + t_k`, `t_k = (k + 1/2)/f - 1/2`, so it is
+    `(1 - a_k) x[i + o_k] + a_k x[i + o_k + 1]` with `o_k = floor(t_k)`, `a_k = t_k - o_k`: `factor`
+    shifted slices of the edge-padded input, interleaved.
+    """
+    n = x.shape[axis]
+    pad = [(0, 0)] * x.ndim
+    pad[axis] = (1, 1)
+    p = jnp.pad(x, pad, mode="edge")
+    phases = []
+    for k in range(factor):
+        t = (k + 0.5) / factor - 0.5
+        o = math.floor(t)
+        a = t - o
+        lo, hi = _slice(p, o + 1, n, axis), _slice(p, o + 2, n, axis)
+        phases.append(lo if a == 0 else (1 - a) * lo + a * hi)
+    y = jnp.stack(phases, axis=axis + 1)
+    shape = list(x.shape)
+    shape[axis] = n * factor
+    return _slice(y.reshape(shape), 0, n_out, axis)
 
 
 def upsample(x: Float[ArrayLike, "h w *C"], height: int, width: int, factor: int = EDGE_DOWNSAMPLE) -> Float[Array, "H W *C"]:
@@ -162,13 +199,7 @@ def upsample(x: Float[ArrayLike, "h w *C"], height: int, width: int, factor: int
     x = jnp.asarray(x)
     if factor == 1:
         return x[:height, :width]
-    r0, r1, fr = _bilinear_taps(height, x.shape[0], factor)
-    c0, c1, fc = _bilinear_taps(width, x.shape[1], factor)
-    extra = (1,) * (x.ndim - 2)
-    fr = jnp.asarray(fr, x.dtype).reshape((-1, 1) + extra)
-    fc = jnp.asarray(fc, x.dtype).reshape((1, -1) + extra)
-    rows = x[r0] * (1 - fr) + x[r1] * fr
-    return rows[:, c0] * (1 - fc) + rows[:, c1] * fc
+    return _upsample_axis(_upsample_axis(x, height, factor, 0), width, factor, 1)
 
 
 def local_mean(
@@ -177,7 +208,10 @@ def local_mean(
     """`upsample(blur(downsample(x), sigma / factor))`: the Gaussian-weighted neighbourhood mean at each pixel."""
     x = jnp.asarray(x)
     H, W = x.shape[:2]
-    return upsample(blur(downsample(x, factor), jnp.asarray(sigma) / factor, radius), H, W, factor)
+    # The barriers keep XLA from fusing the blur into the upsampling's consumers, which would
+    # recompute its taps for every output pixel (several times slower on a CPU).
+    low = jax.lax.optimization_barrier(blur(downsample(x, factor), jnp.asarray(sigma) / factor, radius))
+    return jax.lax.optimization_barrier(upsample(low, H, W, factor))
 
 
 def edge_darkening(
@@ -196,7 +230,9 @@ def edge_darkening(
     - `thickness`: glaze thickness maps (e.g. `(H, W, 2)` wash and unlit), 0
       where nothing is painted.
     - `strength`: $k_e$ (0: off); differentiable.
-    - `width`: the blur's $\sigma$ in pixels (0: off); differentiable.
+    - `width`: the blur's $\sigma$ in pixels; differentiable. At 0 the
+      reduced grid's own resampling remains (an edge about `factor` pixels
+      wide; none at `factor = 1`): `strength = 0` is what turns it off.
     - `factor`, `radius`: the blur's reduction and taps (static).
     - `mean`: $\bar t$ if already computed (`local_mean`).
 

@@ -28,7 +28,8 @@ paper (`_mix.glaze_mix`, or its 3D LUT `_mix.lookup_mix_lut`; with no mix map,
 
 Every continuous parameter is a leaf of `Look` (differentiable with
 `jax.grad`, fittable with optimistix); zero strengths and widths give back
-the plain model exactly. `glsl_final_pass` writes steps 3-5 as one fragment
+the plain model exactly (`OFF`; a zero edge width alone keeps the blur grid's
+own narrow edge). `glsl_final_pass` writes steps 3-5 as one fragment
 shader over the G-buffer, `glsl_surface` step 1 for the geometry pass;
 `look_uniforms` gives their uniforms from the same Python values.
 """
@@ -42,7 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._edges import EDGE_DOWNSAMPLE, EDGE_RADIUS, edge_darkening, gaussian_weights_np, glsl_edge_darkening
+from ._edges import EDGE_RADIUS, edge_darkening, edge_downsample, gaussian_weights_np, glsl_edge_darkening
 from ._hatching import hatch_ink, glsl_hatching
 from ._mix import glsl_mix_lut
 from ._paper import PigmentLook, glsl_paper, paper_shading, pigment_factor, unevenness_factor
@@ -84,7 +85,8 @@ class Look(eqx.Module):
     **Fields:**
 
     - `edge_darkening`: pigment gathered at a glaze's edge, $k_e$ (0: off).
-    - `edge_width`: the edge's width, the blur's sigma in pixels.
+    - `edge_width`: the edge's width, the blur's sigma in pixels (at 0 the
+      blur grid's own width remains, about `edge_downsample(H)` pixels).
     - `granulation`: the paper's effect on granular pigments, $k_g$ in [0, 1].
     - `density`: how much a pigment's density scales its thickness, $k_\\rho$.
     - `turbulence`, `dispersion`: amplitudes of the low- and high-frequency
@@ -171,9 +173,21 @@ def _lerp(a: Array, b: Array, t: Array) -> Array:
     return a + t * (b - a)
 
 
+def _pigment_factor(h: Array, a: PigmentLook, b: PigmentLook, m: Array, look: Look) -> Array:
+    fa = pigment_factor(h, a, look.granulation, look.density)
+    if b == a:  # no mix map: one pigment (a static check, no work for the second)
+        return fa
+    return _lerp(fa, pigment_factor(h, b, look.granulation, look.density), m)
+
+
 def image_terms(
-    gbuffer: Float[ArrayLike, "H W 4"], screen: Float[ArrayLike, "H W 6"], look: Look, pigments: Pigments
-) -> Float[Array, "H W 2"]:
+    gbuffer: Float[ArrayLike, "*p 4"],
+    screen: Float[ArrayLike, "*p 6"],
+    look: Look,
+    pigments: Pigments,
+    *,
+    mean: Float[ArrayLike, "*p 2"] | None = None,
+) -> Float[Array, "*p 2"]:
     r"""Edge darkening, then strokes, granulation, staining, density and unevenness, on the G-buffer's thicknesses.
 
     $$ t' = \mathrm{edge}(t)\ \exp(k_\text{strokes} b)\ \mathrm{lerp}(F_a(h), F_b(h), m)\ \exp(k_t n_t + k_d n_d) $$
@@ -183,24 +197,29 @@ def image_terms(
 
     **Arguments:**
 
-    - `gbuffer`: `(wash, unlit, mix, stroke)` per pixel.
-    - `screen`: the screen textures tiled over the image (`_textures.tile`).
+    - `gbuffer`: `(wash, unlit, mix, stroke)` per pixel: an `(H, W, 4)` image,
+      or any list of pixels when `mean` is given.
+    - `screen`: the screen textures at the same pixels (`_textures.tile`).
     - `look`: the `Look`.
     - `pigments`: the four pigments' `PigmentLook`.
+    - `mean`: the glazes' local mean at those pixels (`_edges.local_mean` of
+      the G-buffer's `(H, W, 2)` thicknesses, with `edge_downsample(H)`); by
+      default computed here from the `(H, W, 4)` image. With it, any set of
+      pixels can be processed: the edge blur is the only operator that needs
+      the whole image.
 
     **Returns:**
 
-    `(H, W, 2)`: the wash and unlit thickness to glaze.
+    `(*p, 2)`: the wash and unlit thickness to glaze.
     """
     g = jnp.asarray(gbuffer)
     s = jnp.asarray(screen)
-    t = edge_darkening(g[..., :2], look.edge_darkening, look.edge_width)
+    factor = edge_downsample(g.shape[0]) if mean is None else 1
+    t = edge_darkening(g[..., :2], look.edge_darkening, look.edge_width, mean=mean, factor=factor)
     h, m = s[..., 0], g[..., 2]
-    fw = _lerp(pigment_factor(h, pigments.wash, look.granulation, look.density), pigment_factor(h, pigments.wash_b, look.granulation, look.density), m)
-    fu = _lerp(pigment_factor(h, pigments.unlit, look.granulation, look.density), pigment_factor(h, pigments.unlit_b, look.granulation, look.density), m)
     b = stroke_factor(g[..., 3], look.strokes)
-    w = t[..., 0] * b * fw * unevenness_factor(s[..., 2], s[..., 3], look.turbulence, look.dispersion)
-    u = t[..., 1] * b * fu * unevenness_factor(s[..., 4], s[..., 5], look.turbulence, look.dispersion)
+    w = t[..., 0] * b * _pigment_factor(h, pigments.wash, pigments.wash_b, m, look) * unevenness_factor(s[..., 2], s[..., 3], look.turbulence, look.dispersion)
+    u = t[..., 1] * b * _pigment_factor(h, pigments.unlit, pigments.unlit_b, m, look) * unevenness_factor(s[..., 4], s[..., 5], look.turbulence, look.dispersion)
     return jnp.stack([w, u], axis=-1)
 
 
@@ -222,13 +241,15 @@ def compose(
     return paper_shading(rgb, jnp.asarray(screen)[..., 1], look.paper_shading)
 
 
-def look_uniforms(look: Look, pigments: Pigments, *, factor: int = EDGE_DOWNSAMPLE, radius: int = EDGE_RADIUS) -> dict[str, Any]:
+def look_uniforms(look: Look, pigments: Pigments, *, height: int, radius: int = EDGE_RADIUS) -> dict[str, Any]:
     """The uniforms of `glsl_surface` and `glsl_final_pass` (and the edge passes) for a `Look`.
 
     The same numbers the JAX operators use: the strengths as floats, the
     pigments' `vec4`s, and `look_edge_weights` (`gaussian_weights_np(width /
-    factor, radius)`, offsets 0..radius).
+    f, radius)`, offsets 0..radius, `f = edge_downsample(height)` for an
+    image `height` pixels tall).
     """
+    factor = edge_downsample(height)
     f = lambda x: float(np.asarray(x))  # noqa: E731
     out: dict[str, Any] = {
         "look_edge_darkening": f(look.edge_darkening),
@@ -277,7 +298,7 @@ vec2 look_surface(vec2 t, float unlit_max, float shadow, vec4 hatch0, vec4 hatch
     )
 
 
-def glsl_final_pass(*, colour: str = "mix", factor: int = EDGE_DOWNSAMPLE) -> str:
+def glsl_final_pass(*, height: int, colour: str = "mix") -> str:
     """The final full-screen pass (no `#version` line): G-buffer -> image terms -> glaze -> paper shading.
 
     Reads `look_gbuffer` (RGBA float: wash, unlit, mix, stroke; `texelFetch`
@@ -287,8 +308,10 @@ def glsl_final_pass(*, colour: str = "mix", factor: int = EDGE_DOWNSAMPLE) -> st
     to top (an OpenGL render: the screen tile's row is then `look_rows - 1 -
     y`); `look_rows` is the image height. `colour="mix"` glazes with the 3D
     LUT (`glsl_mix_lut`); the result is linear RGB unless `LOOK_OUTPUT_SRGB`
-    is defined to 1.
+    is defined to 1. `height`: the image's, which sets the edge blur's
+    reduction (`edge_downsample`).
     """
+    factor = edge_downsample(height)
     if colour != "mix":
         raise ValueError("the final pass glazes with the 3D mix LUT (a 2D LUT is the mix LUT with one slice pair)")
     return (

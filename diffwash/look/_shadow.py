@@ -53,12 +53,26 @@ __all__ = [
     "glsl_shadow",
     "glsl_depth_pass",
     "DEFAULT_BIAS",
+    "SHADOW_MAP_SIZE",
+    "SHADOW_TAPS",
+    "normal_offset",
 ]
 
 #: The depth bias (in depth-buffer units, [0, 1] over the light's depth range) that keeps a lit
-#: surface from shadowing itself at 1024^2 texels on the knot.
+#: surface from shadowing itself on the knot (with `normal_offset`).
 DEFAULT_BIAS = 0.004
+#: Texels per side of the light's depth map. 512 keeps the lookups in a CPU's caches (a 1024^2 map made
+#: the JAX lookups about twice as slow, benchmarks/bench_look.py) and gives the soft-edged shadows a
+#: wash wants; the 3x3 tent softens them over about 3 texels.
+SHADOW_MAP_SIZE = 512
+#: Texels per axis of the percentage-closer filter: 3 (a tent over 3x3 texels) or 2 (one bilinear tap).
+SHADOW_TAPS = 3
 _MARGIN = 1.02  # the frustum's half-size over the bounding sphere's radius
+
+
+def normal_offset(light_vp: Float[ArrayLike, "4 4"], size: int = SHADOW_MAP_SIZE, texels: float = 1.5) -> float:
+    """`texels` light-map texels in world units: the `normal_offset` that keeps lit surfaces out of their own shadow."""
+    return float(texels * 2 / (float(np.asarray(light_vp)[0, 0]) * size))
 
 
 def _safe_normalize(v: Array) -> Array:
@@ -159,17 +173,20 @@ def light_depth(
     return jnp.where(ok, jnp.clip((z + 1) / 2, 0.0, 1.0), 1.0)
 
 
-def _tent(t: Array, n: int) -> tuple[list[Array], list[Array]]:
-    """Indices (clamped) and weights of the 3-texel tent at texel coordinate `t` (texel `j` spans `[j, j + 1]`).
+def _filter(t: Array, n: int, taps: int) -> tuple[list[Array], list[Array]]:
+    """Indices (clamped) and weights of the PCF filter at texel coordinate `t` (texel `j` spans `[j, j + 1]`).
 
-    The mean of two bilinear taps at `t - 1/2 +- 1/2` (coordinates with texel centres at integers):
-    `k0 = floor(t - 1)`, `g = t - 1 - k0`, weights `(1 - g)/2, 1/2, g/2` on `k0, k0 + 1, k0 + 2`.
+    `taps = 2`: one bilinear tap, `k0 = floor(t - 1/2)`, `g = t - 1/2 - k0`, weights `1 - g, g`.
+    `taps = 3`: the mean of two bilinear taps at `t +- 1/2`: `k0 = floor(t - 1)`, `g = t - 1 - k0`,
+    weights `(1 - g)/2, 1/2, g/2` on `k0, k0 + 1, k0 + 2` (a tent).
     """
-    q = t - 1.0
+    q = t - (0.5 if taps == 2 else 1.0)
     k0 = jnp.floor(q)
     g = q - k0
     k0 = k0.astype(jnp.int32)
-    idx = [jnp.clip(k0 + i, 0, n - 1) for i in range(3)]
+    idx = [jnp.clip(k0 + i, 0, n - 1) for i in range(taps)]
+    if taps == 2:
+        return idx, [1 - g, g]
     return idx, [(1 - g) / 2, jnp.full_like(g, 0.5), g / 2]
 
 
@@ -181,14 +198,17 @@ def shadow(
     *,
     normals: Float[ArrayLike, "*b 3"] | None = None,
     normal_offset: Float[ArrayLike, ""] = 0.0,
+    taps: int = SHADOW_TAPS,
 ) -> Float[Array, "*b"]:
     r"""How much each point is in its own shadow, in [0, 1] (1: fully hidden from the light).
 
     The point's light-space depth minus `bias`, compared with the shadow map's
-    (`<=`: lit, as `GL_LEQUAL`) at the 3x3 texels around it, weighted by the
-    tent `[(1 - g)/2, 1/2, g/2]` per axis (`g` the point's fractional texel
-    position): the average of two bilinear percentage-closer taps half a texel
-    either side. Texels past the map's edge repeat its edge.
+    (`<=`: lit, as `GL_LEQUAL`) at the texels around it: with `taps = 3` the
+    3x3 texels weighted by the tent `[(1 - g)/2, 1/2, g/2]` per axis (`g` the
+    point's fractional texel position), the average of two bilinear
+    percentage-closer taps half a texel either side; with `taps = 2` one
+    bilinear percentage-closer tap (2x2 texels, what a GPU's `sampler2DShadow`
+    does with linear filtering). Texels past the map's edge repeat its edge.
 
     **Arguments:**
 
@@ -198,13 +218,16 @@ def shadow(
     - `bias`: subtracted from the point's depth (acne against peter-panning).
     - `normals`, `normal_offset`: look the point up at `P + normal_offset * N`
       instead (world units; about a texel's width keeps surfaces at grazing
-      light from shadowing themselves).
+      light from shadowing themselves, `normal_offset()`).
+    - `taps`: 2 or 3 texels per axis (static).
 
     **Returns:**
 
     The shadow factor, shape `(*b,)`: continuous and differentiable in
-    `positions` and `light_vp` (through the tent weights).
+    `positions` and `light_vp` (through the filter weights).
     """
+    if taps not in (2, 3):
+        raise ValueError(f"taps must be 2 or 3, got {taps}")
     depth = jnp.asarray(depth)
     rows, cols = depth.shape
     P = jnp.asarray(positions)
@@ -212,50 +235,61 @@ def shadow(
         P = P + normal_offset * jnp.asarray(normals)
     ndc = _project(P, jnp.asarray(light_vp))
     d = (ndc[..., 2] + 1) / 2 - bias
-    tx = (ndc[..., 0] + 1) / 2 * cols  # texel centres at j + 0.5
-    ty = (1 - ndc[..., 1]) / 2 * rows
-    cx, wx = _tent(tx, cols)
-    cy, wy = _tent(ty, rows)
+    cx, wx = _filter((ndc[..., 0] + 1) / 2 * cols, cols, taps)  # texel centres at j + 0.5
+    cy, wy = _filter((1 - ndc[..., 1]) / 2 * rows, rows, taps)
     lit = 0.0
-    for i in range(3):
-        for j in range(3):
+    for i in range(taps):
+        for j in range(taps):
             lit = lit + wy[i] * wx[j] * (d <= depth[cy[i], cx[j]]).astype(d.dtype)
     return 1 - lit
 
 
-def glsl_shadow() -> str:
-    """GLSL of `shadow` (9 `texelFetch`es of a float depth texture; the same tent and comparison).
+def glsl_shadow(taps: int = SHADOW_TAPS) -> str:
+    """GLSL of `shadow` (`taps^2` `texelFetch`es of a float depth texture; the same filter and comparison).
 
     Uniforms: `look_shadow_map` (the depth map as OpenGL renders it: row 0 at
-    `y_ndc = -1`), `look_light_view_projection`, `look_shadow_bias`.
+    `y_ndc = -1`), `look_light_view_projection`, `look_shadow_bias`,
+    `look_shadow_normal_offset`.
     """
-    return """\
+    if taps not in (2, 3):
+        raise ValueError(f"taps must be 2 or 3, got {taps}")
+    if taps == 2:
+        filt = """\
+    vec2 q = (ndc.xy + 1.0) * 0.5 * vec2(size) - 0.5;   // one bilinear tap
+    vec2 k0 = floor(q);
+    vec2 g = q - k0;
+    float wx[2] = float[2](1.0 - g.x, g.x);
+    float wy[2] = float[2](1.0 - g.y, g.y);"""
+    else:
+        filt = """\
+    vec2 q = (ndc.xy + 1.0) * 0.5 * vec2(size) - 1.0;   // tent: bilinear taps at +-1/2 texel
+    vec2 k0 = floor(q);
+    vec2 g = q - k0;
+    float wx[3] = float[3]((1.0 - g.x) * 0.5, 0.5, g.x * 0.5);
+    float wy[3] = float[3]((1.0 - g.y) * 0.5, 0.5, g.y * 0.5);"""
+    return f"""\
 // ---- Self-shadowing (diffwash/look/_shadow.py) --------------------------------------------------
 uniform sampler2D look_shadow_map;          // light-space depth (z_ndc + 1) / 2, nearest filtering
 uniform mat4 look_light_view_projection;    // orthographic, fits the mesh (light_view_projection)
 uniform float look_shadow_bias;
 uniform float look_shadow_normal_offset;    // world units along the normal
 
-// 1 where the world point P (unit normal N) is hidden from the light, 0 where lit: a 3x3-texel tent
-// of comparisons.
-float look_shadow_factor(vec3 P, vec3 N) {
+// 1 where the world point P (unit normal N) is hidden from the light, 0 where lit:
+// {taps}x{taps} texels of percentage-closer comparisons.
+float look_shadow_factor(vec3 P, vec3 N) {{
     vec3 ndc = (look_light_view_projection * vec4(P + look_shadow_normal_offset * N, 1.0)).xyz;
     float d = (ndc.z + 1.0) * 0.5 - look_shadow_bias;
     ivec2 size = textureSize(look_shadow_map, 0);
-    vec2 q = (ndc.xy + 1.0) * 0.5 * vec2(size) - 1.0;   // tent of bilinear taps at +-1/2 texel
-    vec2 k0 = floor(q);
-    vec2 g = q - k0;
+{filt}
     ivec2 base = ivec2(k0);
-    vec3 wx = vec3((1.0 - g.x) * 0.5, 0.5, g.x * 0.5);
-    vec3 wy = vec3((1.0 - g.y) * 0.5, 0.5, g.y * 0.5);
     float lit = 0.0;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) {
+    for (int i = 0; i < {taps}; ++i)
+        for (int j = 0; j < {taps}; ++j) {{
             ivec2 t = clamp(base + ivec2(j, i), ivec2(0), size - 1);
             lit += wy[i] * wx[j] * (d <= texelFetch(look_shadow_map, t, 0).r ? 1.0 : 0.0);
-        }
+        }}
     return 1.0 - lit;
-}
+}}
 """
 
 

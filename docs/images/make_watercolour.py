@@ -30,7 +30,7 @@ from diffwash._io import write_png  # noqa: E402
 from diffwash.lut import srgb_encode  # noqa: E402
 
 SCENE = ROOT / "data" / "scenes" / "knot.json"
-SHADOW_SIZE = 1024
+SHADOW_SIZE = wl.SHADOW_MAP_SIZE
 HATCH_SCALE = 190.0  # TAM level-0 texels per object unit: about one texel per pixel on the knot at 512^2
 
 
@@ -101,7 +101,7 @@ def render_look(scene, look: wl.Look, geo: dict, screen, extras: Extras, shadow:
     sh = None
     if shadow is not None:
         depth, vp = shadow
-        offset = 1.5 * 2 / (vp[0, 0] * depth.shape[0])  # about a texel and a half, in world units
+        offset = wl.normal_offset(vp, depth.shape[0])
         sh = wl.shadow(depth, vp, geo["P"], look.shadow_bias, normals=geo["N"], normal_offset=offset)
     hatch = None
     if extras.tam is not None:

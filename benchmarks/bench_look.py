@@ -383,12 +383,30 @@ def agreement() -> float:
     return 10 * np.log10(1 / mse)
 
 
+def lut_errors() -> list[tuple[str, dict]]:
+    """The 3D mix LUT's error against the exact mixed glaze, by size (knot pigments mixed towards yellow and green)."""
+    from diffwash import pigments
+
+    lib = pigments.library()
+    p = diffwash.load_scene(SCENE).params
+    wash_b, unlit_b = lib["Cadmium Yellow"], lib["Hookers Green"]
+
+    def glaze(q, w, u, m):
+        return wl.glaze_mix(q, wash_b, unlit_b, w, u, m)
+
+    rng = dict(wash_max=LUT_RANGE * float(p.wash_max), unlit_max=LUT_RANGE * float(p.unlit_max))
+    rows = [(f"{n}x{m}x{k}", wl.mix_lut_error(glaze, p, (n, m, k), **rng)) for n, m, k in
+            [(16, 16, 4), (32, 32, 8), (64, 64, 8), (64, 64, 16), (64, 64, 32), (128, 128, 16), (256, 256, 16)]]  # fmt: skip
+    rows.append(("two exact 2D LUTs blended (colour mix)", wl.blended_pair_error(glaze, p, **rng)))
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--gl-size", type=int, default=1024)
     ap.add_argument("--seconds", type=float, default=4.0)
-    ap.add_argument("--skip", nargs="*", default=[], choices=["jax", "gl", "agreement"])
+    ap.add_argument("--skip", nargs="*", default=[], choices=["jax", "gl", "agreement", "lut"])
     args = ap.parse_args(argv)
     if "jax" not in args.skip:
         print("| JAX, 512^2, 100k triangles, CPU float32 | ms |\n| --- | ---: |")
@@ -399,6 +417,11 @@ def main(argv=None) -> int:
         print(f"\nOpenGL: {res.pop('renderer')}, {args.gl_size}^2, 100k triangles\n\n| frame | fps or ratio |\n| --- | ---: |")
         for k, v in res.items():
             print(f"| {k} | {v:.2f} |")
+    if "lut" not in args.skip:
+        print(f"\n3D mix LUT over {LUT_RANGE}x the model's thickness range, against the exact glaze (8-bit sRGB levels)\n")
+        print("| table | max | rms | RGBA8 bytes |\n| --- | ---: | ---: | ---: |")
+        for name, e in lut_errors():
+            print(f"| {name} | {e['max']:.2f} | {e['rms']:.3f} | {int(e['bytes']) if 'bytes' in e else '-'} |")
     if "agreement" not in args.skip:
         print(f"\nOpenGL look frame against the JAX pipeline (512^2, 8-bit sRGB): PSNR {agreement():.1f} dB")
     return 0

@@ -318,3 +318,11 @@ def test_mix_maps_are_checked():
 
 def test_data_folder_is_the_tests_source():
     assert (DATA / "meshes" / "knot-1k.ply").is_file()
+
+
+def test_normal_offset_is_texels_in_world_units():
+    v = np.random.default_rng(1).normal(size=(40, 3))
+    for d in ([0, 1, 0], [1, 1.2, 0.8], [0.3, -0.2, 1.0]):
+        vp = np.asarray(_shadow.light_view_projection(v, d))
+        r = 1 / np.linalg.norm(vp[0, :3])  # the frustum's half-size
+        np.testing.assert_allclose(_shadow.normal_offset(vp, 512, 1.5), 1.5 * 2 * r / 512)

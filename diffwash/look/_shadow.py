@@ -72,7 +72,8 @@ _MARGIN = 1.02  # the frustum's half-size over the bounding sphere's radius
 
 def normal_offset(light_vp: Float[ArrayLike, "4 4"], size: int = SHADOW_MAP_SIZE, texels: float = 1.5) -> float:
     """`texels` light-map texels in world units: the `normal_offset` that keeps lit surfaces out of their own shadow."""
-    return float(texels * 2 / (float(np.asarray(light_vp)[0, 0]) * size))
+    scale = float(np.linalg.norm(np.asarray(light_vp, np.float64)[0, :3]))  # 1 / the frustum's half-size
+    return float(texels * 2 / (scale * size))
 
 
 def _safe_normalize(v: Array) -> Array:

@@ -184,7 +184,7 @@ def strokes_figure(scene, screen, out: Path) -> None:
         sc = lighter(with_mesh(scene, v, f, n))
         img = render_look(sc, lk, pixel_geometry(sc), screen, Extras(strokes=wl.stroke_field(v, f, n, direction="max")), None)
         panels.append(crop(img, (40, 40)))
-    save(out / "watercolour-strokes-meshes.png", side_by_side(*panels))
+    save(out / "watercolour-strokes-meshes.jpg", side_by_side(*panels))
 
 
 def main(argv=None) -> int:

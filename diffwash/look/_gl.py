@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 __all__ = ["float_literal", "vec_literal", "FULLSCREEN_VERTEX", "HEADERS", "header"]
 
 #: The `#version` line (and precision statements) of each target, as in `diffwash._glsl`.
@@ -71,7 +73,6 @@ def texture(ctx, array, *, linear: bool = False, repeat: bool = False, mipmaps=N
     not filtered ones); the texture then samples `LINEAR_MIPMAP_LINEAR`.
     """
     import moderngl
-    import numpy as np
 
     a = np.asarray(array)
     if a.ndim == 2:
@@ -95,7 +96,6 @@ def texture(ctx, array, *, linear: bool = False, repeat: bool = False, mipmaps=N
 def texture3d(ctx, array):
     """A linearly filtered, clamped moderngl 3D texture from a `(d, h, w, c)` float array (slice 0 first)."""
     import moderngl
-    import numpy as np
 
     a = np.ascontiguousarray(np.asarray(array, np.float32))
     tex = ctx.texture3d((a.shape[2], a.shape[1], a.shape[0]), a.shape[3], a.tobytes(), dtype="f4")
@@ -118,8 +118,6 @@ def run_fullscreen(ctx, fragment: str, size: tuple[int, int], *, textures=None, 
     `(height, width, components)` float32, row 0 = the target's row 0
     (`gl_FragCoord.y = 0.5`).
     """
-    import numpy as np
-
     program = ctx.program(vertex_shader=header(target) + FULLSCREEN_VERTEX, fragment_shader=header(target) + fragment)
     try:
         for unit, (name, tex) in enumerate((textures or {}).items()):

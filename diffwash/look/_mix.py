@@ -42,6 +42,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .. import km
 from .._errors import DiffwashError
+from ..lut import srgb_encode
 
 __all__ = [
     "mix_coefficients",
@@ -199,8 +200,6 @@ def mix_lut_error(
     display sRGB values, in 8-bit levels (1 = one level of 255), and
     `"bytes"`: the table's size as RGBA8 texels.
     """
-    from ..lut import srgb_encode
-
     table = bake_mix_lut(glaze, params, size, wash_max=wash_max, unlit_max=unlit_max)
     rng = np.random.default_rng(seed)
     w = rng.uniform(0, wash_max, samples)
@@ -220,8 +219,6 @@ def blended_pair_error(
     What two exact 2D LUTs blended in a shader would give (no table error at
     all). Same units as `mix_lut_error`.
     """
-    from ..lut import srgb_encode
-
     rng = np.random.default_rng(seed)
     w = rng.uniform(0, wash_max, samples)
     u = rng.uniform(0, unlit_max, samples)

@@ -40,7 +40,9 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
+import trimesh
 from jaxtyping import Array, ArrayLike, Float
+from scipy.spatial import cKDTree
 
 __all__ = [
     "principal_directions",
@@ -185,8 +187,6 @@ def stroke_field(
 
     `(V,)` float32, zero mean, unit standard deviation.
     """
-    from scipy.spatial import cKDTree
-
     if direction not in ("min", "max"):
         raise ValueError(f"direction must be 'min' or 'max', got {direction!r}")
     p = np.asarray(vertices, np.float64)
@@ -233,8 +233,6 @@ def subdivide(
 
     `(vertices, faces, normals)` of the finer mesh.
     """
-    import trimesh
-
     v, f, n = np.asarray(vertices, np.float64), np.asarray(faces, np.int64), np.asarray(normals, np.float64)
     while mean_edge_length(v, f) > max_edge:
         v, f, attrs = trimesh.remesh.subdivide(v, f, vertex_attributes={"normals": n})

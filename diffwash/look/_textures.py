@@ -41,8 +41,10 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
+from scipy.spatial import cKDTree
 
 from .._errors import DiffwashError
+from .._io import read_image
 
 __all__ = [
     "CHANNELS",
@@ -113,8 +115,6 @@ def _gaussian_blur(x: np.ndarray, sigma: float) -> np.ndarray:
 
 def _tooth(shape: tuple[int, int], cell: float, rng: np.random.Generator) -> np.ndarray:
     """Cold-press "tooth": rounded bumps of random size around random points, on a torus."""
-    from scipy.spatial import cKDTree
-
     rows, cols = shape
     # A jittered grid: bumps about `cell` apart, evenly spread like the felt marks of cold-pressed paper.
     nr, nc = max(2, int(round(rows / cell))), max(2, int(round(cols / cell)))
@@ -220,8 +220,6 @@ def paper_from_image(path: str | os.PathLike, *, field: str = "paper") -> np.nda
 
     `(rows, columns)` float64 heights in [0, 1].
     """
-    from .._io import read_image
-
     try:
         rgb, _ = read_image(path)
     except DiffwashError as e:

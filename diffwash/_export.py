@@ -27,9 +27,14 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import trimesh
+
+from . import lut as _lut
 from ._errors import DiffwashError
 from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
-from . import lut as _lut
+from ._scene import Scene, load_scene, scene_to_dict
+from ._viewer import viewer_html
 
 __all__ = ["export", "mesh_glb", "EXPORT_FILES"]
 
@@ -51,9 +56,6 @@ EXPORT_FILES = (
 
 def mesh_glb(mesh: Any) -> bytes:
     """The mesh (vertices, faces, vertex normals) as binary glTF 2.0."""
-    import numpy as np
-    import trimesh
-
     m = trimesh.Trimesh(
         vertices=np.asarray(mesh.vertices, np.float64),
         faces=np.asarray(mesh.faces, np.int64),
@@ -64,8 +66,6 @@ def mesh_glb(mesh: Any) -> bytes:
 
 
 def _scene_of(scene_or_path: Any) -> Any:
-    from ._scene import Scene, load_scene
-
     if isinstance(scene_or_path, Scene):
         return scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
@@ -108,9 +108,6 @@ def export(
 
     The paths written, in `folder`.
     """
-    from ._scene import scene_to_dict
-    from ._viewer import viewer_html
-
     if target not in TARGETS:
         raise DiffwashError(f"must be one of {', '.join(TARGETS)}, got {target!r}", field="target")
     if fmt not in _lut.FORMATS:

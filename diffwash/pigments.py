@@ -2,8 +2,7 @@
 
 A pigment is its absorption `K` and scattering `S` per unit thickness for red,
 green and blue, plus the three properties Curtis et al. (1997) use for pigment
-transport (density, staining, granularity; kept for completeness, unused by the
-shading model).
+transport (density, staining, granularity).
 
 Pigment files are JSON, described by the JSON Schema `data/pigments/schema.json`
 shipped with the package: either one pigment object
@@ -21,6 +20,7 @@ Curtis et al.), `data/pigments/seed.json`.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import os
 from importlib import resources
@@ -28,34 +28,38 @@ from pathlib import Path
 from typing import Any
 
 import equinox as eqx
+import jax
 import numpy as np
+from jaxtyping import ArrayLike, Float
 
 from ._errors import DiffwashError
 from ._io import finite_number, read_json, write_json
 
-__all__ = ["Pigment", "load", "library", "names", "parse", "save", "DEFAULTS"]
+__all__ = ["Pigment", "unlabelled", "load", "library", "names", "parse", "save", "DEFAULTS"]
 
 #: Values of the optional keys when a pigment file leaves them out.
 DEFAULTS = {"density": 0.05, "staining": 1.0, "granularity": 0.5}
 
 
 class Pigment(eqx.Module):
-    """A watercolour pigment: a pytree whose leaves are `K` and `S`.
+    """A watercolour pigment: a pytree whose leaves are its coefficients.
 
     **Fields:**
 
-    - `name`: the pigment's name.
     - `K`: absorption per unit thickness, shape (3,) (red, green, blue), `>= 0`.
     - `S`: scattering per unit thickness, shape (3,), `>= 0`.
-    - `density`, `staining`, `granularity`: Curtis et al.'s rho, omega, gamma.
+    - `density`, `staining`, `granularity`: Curtis et al.'s rho, omega, gamma
+      (scalars; differentiable leaves like `K` and `S`).
+    - `name`: the pigment's label: static metadata, which the compiled kernels
+      never see (`unlabelled`), so relabelling a pigment compiles nothing.
     """
 
-    K: Any
-    S: Any
+    K: Float[ArrayLike, " C"]
+    S: Float[ArrayLike, " C"]
+    density: Float[ArrayLike, ""] = DEFAULTS["density"]
+    staining: Float[ArrayLike, ""] = DEFAULTS["staining"]
+    granularity: Float[ArrayLike, ""] = DEFAULTS["granularity"]
     name: str = eqx.field(static=True, default="pigment")
-    density: float = eqx.field(static=True, default=DEFAULTS["density"])
-    staining: float = eqx.field(static=True, default=DEFAULTS["staining"])
-    granularity: float = eqx.field(static=True, default=DEFAULTS["granularity"])
 
     def to_dict(self) -> dict[str, Any]:
         """The pigment as a JSON-ready dict in the library schema."""
@@ -63,10 +67,19 @@ class Pigment(eqx.Module):
             "name": self.name,
             "K": [float(v) for v in np.asarray(self.K)],
             "S": [float(v) for v in np.asarray(self.S)],
-            "density": self.density,
-            "staining": self.staining,
-            "granularity": self.granularity,
+            "density": float(self.density),
+            "staining": float(self.staining),
+            "granularity": float(self.granularity),
         }
+
+
+def unlabelled(tree: Any) -> Any:
+    """`tree` with every `Pigment` in it relabelled to the default label (what compiled kernels take)."""
+
+    def strip(x: Any) -> Any:
+        return dataclasses.replace(x, name="pigment") if isinstance(x, Pigment) and x.name != "pigment" else x
+
+    return jax.tree.map(strip, tree, is_leaf=lambda x: isinstance(x, Pigment))
 
 
 def _default_library_path() -> Path:

@@ -55,8 +55,7 @@ import optimistix as optx
 from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import read_image, read_json
-from .._raster import Visibility, rasterize
-from .._render import Surface, surface, surface_thicknesses
+from .._render import Surface, Visibility, rasterize, surface, surface_thicknesses
 from .. import shading
 from .._scene import Scene, load_scene, parse_scene, save_scene
 from ..pigments import Pigment

@@ -43,7 +43,7 @@ from jaxtyping import Array, ArrayLike, Float, Int
 
 from ._cache import LRU
 from ._interpolate import corners, edge_functions, pixel_ndc
-from ._rasterize import is_concrete, pad_size
+from ._rasterize import compact, is_concrete
 
 __all__ = ["Silhouettes", "edge_topology", "silhouettes", "antialias"]
 
@@ -194,9 +194,7 @@ def _compact(mask: Array, size: int | None, arrays: tuple[Array, ...], fill: tup
 
     `size` None: the count rounded up to a bucket (read from the device).
     """
-    if size is None:
-        size = pad_size(int(jnp.sum(mask)))
-    (idx,) = jnp.nonzero(mask, size=size, fill_value=mask.shape[0])
+    idx = compact(mask, size)
     ok = idx < mask.shape[0]
     safe = jnp.minimum(idx, mask.shape[0] - 1)
     return [jnp.where(ok, x[safe], f) for x, f in zip(arrays, fill)]

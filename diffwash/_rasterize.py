@@ -57,6 +57,7 @@ __all__ = [
     "Raster",
     "rasterize",
     "covered",
+    "compact",
     "clip_positions",
     "pad_size",
     "default_capacity",
@@ -314,6 +315,30 @@ def rasterize(
     return _rasterize(clip, faces, cull, width=width, height=height, capacity=int(capacity))
 
 
+def compact(mask: Bool[Array, " n"], size: int | None = None) -> Int[Array, " m"]:
+    """Indices where `mask` holds, in order, padded with `n` to a static length.
+
+    `size` None: the count rounded up to a bucket (`pad_size`) when `mask` is
+    concrete, else `n`. On the CPU, for a concrete mask, the host does it
+    (NumPy's `flatnonzero` is many times faster than XLA's stream compaction
+    there, and reading the mask copies nothing).
+    """
+    n = mask.shape[0]
+    if size is None and is_concrete(mask):
+        if jax.default_backend() == "cpu":
+            idx = np.flatnonzero(np.asarray(mask)).astype(np.int32)
+            out = np.full(pad_size(len(idx)), n, np.int32)
+            out[: len(idx)] = idx
+            return jax.device_put(out)
+        size = pad_size(int(jnp.sum(mask)))
+    return _nonzero(mask, size=n if size is None else size)
+
+
+@functools.partial(jax.jit, static_argnames=("size",))
+def _nonzero(mask, *, size):
+    return jnp.nonzero(mask, size=size, fill_value=mask.shape[0])[0].astype(jnp.int32)
+
+
 def covered(tri_id: Int[Array, "H W"], size: int | None = None) -> tuple[Int[Array, " P"], Int[Array, " P"]]:
     """The covered pixels (row-major indices) and their triangles, compacted to a static length.
 
@@ -329,12 +354,12 @@ def covered(tri_id: Int[Array, "H W"], size: int | None = None) -> tuple[Int[Arr
     index `H * W` (past the image) and repeat a covered pixel's triangle, so
     they shade something valid and are dropped when scattered into the image.
     """
-    flat = tri_id.reshape(-1)
+    flat = jnp.asarray(tri_id).reshape(-1)
+    return _pixel_tri(flat, compact(flat >= 0, size))
+
+
+@jax.jit
+def _pixel_tri(flat, pixels):
     n = flat.shape[0]
-    if size is None:
-        size = pad_size(int(jnp.sum(flat >= 0))) if is_concrete(flat) else n
-    (pixels,) = jnp.nonzero(flat >= 0, size=size, fill_value=n)
-    pixels = pixels.astype(jnp.int32)
-    first = flat[pixels[0]] if size else 0
-    pixel_tri = jnp.where(pixels < n, flat[jnp.minimum(pixels, n - 1)], jnp.maximum(first, 0))
-    return pixels, pixel_tri.astype(jnp.int32)
+    first = jnp.maximum(flat[jnp.minimum(pixels[0], n - 1)], 0)
+    return pixels, jnp.where(pixels < n, flat[jnp.minimum(pixels, n - 1)], first).astype(jnp.int32)

@@ -217,6 +217,10 @@ def test_array_op_matches_scene_rasterize_and_covered_lists_the_covered_pixels()
     np.testing.assert_array_equal(real, np.flatnonzero(ids.reshape(-1) >= 0))
     np.testing.assert_array_equal(np.asarray(vis.pixel_tri)[: len(real)], ids.reshape(-1)[real])
     assert len(pixels) == pad_size(len(real))
+    # The device's stream compaction (traced, or a given size) lists the same pixels.
+    p2, t2 = ops.covered(raster.tri_id, size=len(pixels))
+    np.testing.assert_array_equal(np.asarray(p2), pixels)
+    np.testing.assert_array_equal(np.asarray(t2), np.asarray(vis.pixel_tri))
 
 
 def test_rasterize_under_jit_and_vmap_matches_concrete_calls():

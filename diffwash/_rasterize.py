@@ -194,18 +194,18 @@ def _fragments(clip, faces, boxes, tri, first, width, height):
     edge is never missed by both (no cracks). Orientation is not needed here
     (culling is decided in the setup).
     """
-    x0, y0, nx, area = (boxes[tri, i] for i in range(4))
+    box = boxes[tri]  # one gather per job of (x0, y0, columns, pixel centres)
+    x0, y0, nx, area = (box[:, i] for i in range(4))
     f = faces[tri]
     lo = jnp.minimum(jnp.minimum(f[:, 0], f[:, 1]), f[:, 2])
     hi = jnp.maximum(jnp.maximum(f[:, 0], f[:, 1]), f[:, 2])
     mid = f[:, 0] + f[:, 1] + f[:, 2] - lo - hi
-    hv = _pixel_homogeneous(clip, width, height)
-    v = [hv[i] for i in (lo, mid, hi)]  # (X, Y, w) of the vertices, in increasing index order
-    X, Y, w = ([vi[:, k][:, None] for vi in v] for k in range(3))
-    Z = [clip[i, 2][:, None] for i in (lo, mid, hi)]
+    hvz = jnp.concatenate([_pixel_homogeneous(clip, width, height), clip[:, 2:3]], axis=1)  # (X, Y, w, z)
+    v = [hvz[i] for i in (lo, mid, hi)]  # the vertices in increasing index order, one gather each
+    X, Y, w, Z = ([vi[:, k][:, None] for vi in v] for k in range(4))
     # det[v0, v1, v2] with the origin at the box's first pixel centre (precision).
-    ox = x0.astype(hv.dtype)[:, None] + 0.5
-    oy = y0.astype(hv.dtype)[:, None] + 0.5
+    ox = x0.astype(hvz.dtype)[:, None] + 0.5
+    oy = y0.astype(hvz.dtype)[:, None] + 0.5
     Xo = [Xi - ox * wi for Xi, wi in zip(X, w)]
     Yo = [Yi - oy * wi for Yi, wi in zip(Y, w)]
     det = (
@@ -213,12 +213,12 @@ def _fragments(clip, faces, boxes, tri, first, width, height):
         + w[1] * (Xo[2] * Yo[0] - Xo[0] * Yo[2])
         + w[2] * (Xo[0] * Yo[1] - Xo[1] * Yo[0])
     )
-    sgn = jnp.sign(det).astype(hv.dtype)
+    sgn = jnp.sign(det).astype(hvz.dtype)
     local = first[:, None] + jnp.arange(WINDOW, dtype=jnp.int32)[None, :]
     px = x0[:, None] + jax.lax.rem(local, nx[:, None])
     py = y0[:, None] + jax.lax.div(local, nx[:, None])
-    fx = px.astype(hv.dtype) + 0.5
-    fy = py.astype(hv.dtype) + 0.5
+    fx = px.astype(hvz.dtype) + 0.5
+    fy = py.astype(hvz.dtype) + 0.5
     Xs = [Xi - fx * wi for Xi, wi in zip(X, w)]  # origin at the pixel centre
     Ys = [Yi - fy * wi for Yi, wi in zip(Y, w)]
 

@@ -31,10 +31,10 @@ import numpy as np
 from . import pigments as _pigments
 from ._camera import Camera
 from ._errors import DiffwashError
-from ._io import finite_number, read_json, write_json
+from ._io import FLOAT32_MAX, check_float32, finite_number, read_json, write_json
 from .shading import DEFAULT_CONSTANTS, DEFAULT_PAPER, Params
 
-__all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "MAX_IMAGE_SIDE"]
+__all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "referenced_files", "MAX_IMAGE_SIDE"]
 
 #: Largest image side the renderer accepts (pixels).
 MAX_IMAGE_SIDE = 8192
@@ -103,6 +103,7 @@ def _number(obj: dict, key: str, file: Any, field: str, *, default: Any = None, 
     v = obj[key]
     if not finite_number(v):
         raise _fail(f"must be a finite number, got {v!r}", file, field)
+    v = check_float32(v, file=file, field=field)
     if lo is not None and (v < lo or (lo_open and v == lo)):
         raise _fail(f"must be {'>' if lo_open else '>='} {lo}, got {v!r}", file, field)
     if hi is not None and v > hi:
@@ -118,6 +119,8 @@ def _vec3(obj: dict, key: str, file: Any, field: str, default: Any = None, nonne
     v = obj[key]
     if not isinstance(v, list) or len(v) != 3 or not all(finite_number(c) for c in v):
         raise _fail(f"must be a list of 3 finite numbers, got {v!r}", file, field)
+    for i, c in enumerate(v):
+        check_float32(c, file=file, field=f"{field}[{i}]")
     if nonneg and any(c < 0 for c in v):
         raise _fail(f"must be >= 0, got {v!r}", file, field)
     return np.asarray(v, np.float64)
@@ -176,9 +179,13 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
     faces = np.asarray(loaded.faces, np.int64)
     if len(faces) == 0 or len(vertices) == 0:
         raise _fail(f"mesh {path} is empty (no triangles)", where, field)
-    if not np.all(np.isfinite(vertices)):
-        bad = int(np.argmax(~np.all(np.isfinite(vertices), axis=1)))
-        raise _fail(f"mesh {path} has non-finite vertex coordinates (vertex {bad})", where, field)
+    in_range = np.all(np.abs(vertices) <= FLOAT32_MAX, axis=1)  # False for NaN too
+    if not np.all(in_range):
+        bad = int(np.argmax(~in_range))
+        raise _fail(f"mesh {path} has non-finite vertex coordinates in float32, which diffwash computes in "
+                    f"(vertex {bad}: {vertices[bad].tolist()})", where, field)  # fmt: skip
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
+        raise _fail(f"mesh {path} has faces that name vertices it does not have", where, field)
     normals = None
     if file_normals is not None and np.shape(file_normals) == vertices.shape:
         n = np.asarray(file_normals, np.float64)
@@ -394,6 +401,27 @@ def scene_to_dict(scene: Scene, params: Params | None = None, *, relative_to: st
         if isinstance(v, float) and not math.isfinite(v):
             raise DiffwashError(f"is not finite ({v}); refusing to write the scene", field=k)
     return out
+
+
+def referenced_files(path: str | os.PathLike) -> list[Path]:
+    """The files a scene file names (its mesh, its pigment files), for commands that must not overwrite them.
+
+    Best effort: a scene that cannot be read names none (`load_scene` says why).
+    """
+    try:
+        data = read_json(path)
+    except DiffwashError:
+        return []
+    if not isinstance(data, dict):
+        return []
+    base = Path(path).parent
+    found = [base / data["mesh"]] if isinstance(data.get("mesh"), str) and data["mesh"] else []
+    for key in ("wash", "unlit"):
+        spec = data.get(key)
+        ref = spec.get("pigment") if isinstance(spec, dict) else spec
+        if isinstance(ref, str) and ref and (base / ref).is_file():
+            found.append(base / ref)
+    return found
 
 
 def save_scene(path: str | os.PathLike, scene: Scene, params: Params | None = None) -> None:

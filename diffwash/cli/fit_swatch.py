@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from . import add_image_limit
+
 NAME = "fit-swatch"
 HELP = "fit pigment K and S to a swatch-card photo or a table of measured colours"
 USES_JAX = True
@@ -38,6 +40,7 @@ def add_arguments(p) -> None:
     p.add_argument("--max-steps", type=int, default=1000, metavar="N",
                    help="Levenberg-Marquardt steps at most (default: %(default)s)")  # fmt: skip
     p.add_argument("--allow-unconverged", action="store_true", help="write the result even if the fit did not converge")
+    add_image_limit(p)
 
 
 def _srgb8(linear) -> str:
@@ -61,11 +64,13 @@ def _check_output(path: str, suffix: str, flag: str) -> Path:
 
 def run(args) -> int:
     from .._errors import DiffwashError
+    from .._io import refuse_overwriting_inputs
 
     out = _check_output(args.output, ".json", "--output")
     report = _check_output(args.report, ".png", "--report") if args.report else None
     if args.max_steps < 1:
         raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
+    refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.photos, *(args.layout or []), args.table])
     if args.table is not None:
         if args.photos or args.layout:
             raise DiffwashError("give either --table or photos with --layout, not both", field="--table")

@@ -376,8 +376,8 @@ def image_pixel_limit(limit: int | None, field: str = "max_image_pixels") -> Ite
 def _check_pixels(width: int, height: int, path: Path, limit: int) -> None:
     if width * height > limit:
         raise DiffwashError(
-            f"is {width}x{height} = {width * height:,} pixels, over the limit of {limit:,} (checked before decoding: "
-            f"a file this small may be a decompression bomb); to read it, raise the limit with "
+            f"is {width}x{height} = {width * height:,} pixels by its header, over the limit of {limit:,} (refused "
+            f"before decoding: a small file can hold a huge image); to read it, raise the limit with "
             f"{PIXELS_ENV}=N or --max-image-pixels N", file=path)  # fmt: skip
 
 
@@ -385,16 +385,15 @@ _PILLOW_LOCK = threading.Lock()
 
 
 @contextlib.contextmanager
-def _pillow_guard(limit: int) -> Iterator[None]:
-    """Pillow with its own decompression-bomb limit no lower than ours (ours is checked first) and its
-    warnings about odd but readable files silenced."""
+def _pillow_guard() -> Iterator[None]:
+    """Pillow with its own decompression-bomb check off (ours, the same check with our limit, runs on the
+    header before anything is decoded) and its warnings about odd but readable files silenced."""
     from PIL import Image
 
     with _PILLOW_LOCK, warnings.catch_warnings():
         warnings.simplefilter("ignore")
         old = Image.MAX_IMAGE_PIXELS
-        if old is not None and old < limit:
-            Image.MAX_IMAGE_PIXELS = limit
+        Image.MAX_IMAGE_PIXELS = None
         try:
             yield
         finally:
@@ -515,7 +514,7 @@ def _read_pillow(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
     from PIL import Image, ImageOps, UnidentifiedImageError
 
     try:
-        with _pillow_guard(limit), Image.open(path, formats=_PILLOW_FORMATS) as im:
+        with _pillow_guard(), Image.open(path, formats=_PILLOW_FORMATS) as im:
             _check_pixels(im.width, im.height, path, limit)
             im = ImageOps.exif_transpose(im)
             bands = im.getbands()
@@ -527,8 +526,6 @@ def _read_pillow(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
                 alpha = "A" in bands or "transparency" in im.info
                 target = ("LA" if alpha else "L") if grey else ("RGBA" if alpha else "RGB")
                 a = np.asarray(im.convert(target), np.float64) / 255.0
-    except Image.DecompressionBombError as e:
-        raise DiffwashError(f"too many pixels to read safely: {e}".splitlines()[0], file=path) from None
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError, struct.error, IndexError,
             TypeError, KeyError, ZeroDivisionError, MemoryError) as e:  # fmt: skip
         raise DiffwashError(f"not a readable image: {e}".splitlines()[0], file=path) from None

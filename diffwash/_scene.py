@@ -20,6 +20,7 @@ Required: `mesh`, `camera.eye`, `camera.target`, `light.direction`, `wash`,
 from __future__ import annotations
 
 import difflib
+import logging
 import math
 import os
 from pathlib import Path
@@ -157,10 +158,16 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
     where = file if file is not None else path
     if not path.is_file():
         raise _fail(f"mesh file not found: {path}", where, field)
+    # trimesh logs what it tries on a damaged file (tracebacks included); with no logging set up Python would print
+    # that on stderr, so give its loggers a handler that drops it while loading (set-up logging still gets it).
+    quiet = logging.NullHandler()
+    logging.getLogger("trimesh").addHandler(quiet)
     try:
         loaded = trimesh.load(path, process=False)
     except Exception as e:  # trimesh raises many kinds for unreadable files
         raise _fail(f"cannot read mesh {path}: {e}".splitlines()[0], where, field) from None
+    finally:
+        logging.getLogger("trimesh").removeHandler(quiet)
     if isinstance(loaded, trimesh.Scene) and len(loaded.graph.nodes_geometry) == 1:
         # One untransformed mesh (e.g. a GLB): take it as it is, keeping the normals its file stored
         # (Scene.dump() copies the geometry and drops them).
@@ -275,6 +282,8 @@ def parse_scene(
         raise _fail(f"must be below 180 degrees, got {fov_y}", file, "camera.fov_y")
     view = target - eye
     dist = float(np.linalg.norm(view))
+    if not dist <= FLOAT32_MAX:
+        raise _fail(f"is {dist:g} from camera.eye: out of float32 range", file, "camera.target")
     if dist <= 1e-9 * max(1.0, float(np.linalg.norm(eye))):
         raise _fail("camera.eye and camera.target are the same point: no view direction", file, "camera.target")
     if np.linalg.norm(up) == 0 or np.linalg.norm(np.cross(view / dist, up / np.linalg.norm(up))) < 1e-6:
@@ -322,6 +331,9 @@ def parse_scene(
     for key in ("gain", "bias"):
         if not 0 < consts[key] < 1:
             raise _fail(f"must be strictly between 0 and 1, got {float(consts[key])}", file, key)
+    wash_max = float(consts["k_specular"] * consts["k_wash"])
+    if not wash_max <= FLOAT32_MAX:  # the thickest wash, the LUT's wash_max: each factor fits float32, the product not
+        raise _fail(f"k_specular x k_wash = {wash_max:g} (the thickest wash) is out of float32 range", file, "k_wash")
 
     params = Params(wash=wash, unlit=unlit, paper=paper, light=direction, **consts)
     return Scene(

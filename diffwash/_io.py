@@ -33,7 +33,7 @@ import numpy as np
 from ._errors import DiffwashError, FailureError
 
 __all__ = [
-    "read_json", "write_json", "write_text", "atomic_path", "atomic_folder", "read_image", "write_png", "write_image",
+    "read_json", "write_json", "write_text", "atomic_path", "atomic_paths", "atomic_folder", "read_image", "write_png", "write_image",
     "save_figure", "image_format_for", "to_uint", "finite_number", "check_float32", "refuse_overwriting_inputs",
     "max_image_pixels", "image_pixel_limit", "MAX_IMAGE_PIXELS", "IMAGE_FORMATS", "FLOAT32_MAX",
 ]  # fmt: skip
@@ -143,9 +143,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     except BaseException as e:
         with contextlib.suppress(OSError):
             tmp.unlink()
-        if isinstance(e, OSError):
-            raise write_error(e, path) from None
-        raise
+        _reraise(e, tmp, path)
 
 
 @contextlib.contextmanager
@@ -181,9 +179,36 @@ def atomic_folder(folder: str | os.PathLike, *, merge: bool = False) -> Iterator
             _replace(tmp, folder)
     except BaseException as e:
         shutil.rmtree(tmp, ignore_errors=True)
-        if isinstance(e, OSError):
-            raise write_error(e, shown) from None
-        raise
+        _reraise(e, tmp, shown)
+
+
+def _reraise(e: BaseException, tmp: Path, final: Path) -> None:
+    """Raise `e`, met while writing `final` through the temporary `tmp`, naming `final` rather than `tmp`: an
+    `OSError` as a one-line error (`write_error`), a `DiffwashError` about something in `tmp` about `final`."""
+    if isinstance(e, OSError):
+        if e.filename is None:
+            raise write_error(e, final) from None
+        if _inside(e.filename, tmp) is not None:
+            raise write_error(e, final / _inside(e.filename, tmp)) from None
+    if isinstance(e, DiffwashError) and e.file is not None and _inside(e.file, tmp) is not None:
+        raise type(e)(e.problem, file=final / _inside(e.file, tmp), field=e.field) from None
+    raise e  # about another file: its own writer names it
+
+
+def _inside(path: Any, tmp: Path) -> Path | None:
+    """`path` relative to `tmp` (`.` for `tmp` itself), or None when it lies elsewhere."""
+    try:
+        return Path(os.path.abspath(os.fsdecode(path))).relative_to(tmp)
+    except (ValueError, TypeError):
+        return None
+
+
+@contextlib.contextmanager
+def atomic_paths(*paths: str | os.PathLike | None) -> Iterator[list[Path | None]]:
+    """`atomic_path` for several files written together: temporary paths (None for None), all renamed into place
+    once all are complete, or none on any exception."""
+    with contextlib.ExitStack() as stack:
+        yield [None if p is None else stack.enter_context(atomic_path(p)) for p in paths]
 
 
 def _replace(new: Path, old: Path) -> None:

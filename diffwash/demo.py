@@ -332,8 +332,9 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     save_figure(path, fig, facecolor="white")
 
 
-def main_summary(res: DemoResult, stream: Any = sys.stdout) -> None:
-    """Print what the demo wrote and where to look."""
+def main_summary(res: DemoResult, stream: Any = None) -> None:
+    """Print what the demo wrote and where to look (on `stream`, default the standard output of the moment)."""
+    stream = sys.stdout if stream is None else stream
     total = sum(res.seconds.values())
     print(f"\nwrote {len(res.files)} results to {res.folder}/ in {total:.0f} s:", file=stream)
     for name, p in res.files.items():

@@ -32,7 +32,6 @@ the pigment, the paper and the ink.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 from collections.abc import Sequence
@@ -43,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from . import colorimetry, km
-from ._io import atomic_path, image_format_for, refuse_overwriting_inputs, write_png
+from ._io import atomic_paths, image_format_for, refuse_overwriting_inputs, write_png
 from .pigments import Pigment
 from .shading import DEFAULT_PAPER
 
@@ -252,9 +251,7 @@ def save_swatch_card(
     meta = {"generator": "diffwash.swatchcard", "pigment": card.pigment.to_dict(), "effects": asdict(card.effects)}
     layout_text = json.dumps({**card.layout, "meta": meta}, indent=2, allow_nan=False) + "\n"
     # Both files or neither: each goes to a temporary name, and both are renamed once both are complete.
-    with contextlib.ExitStack() as stack:
-        photo_tmp = stack.enter_context(atomic_path(photo_path))
-        layout_tmp = stack.enter_context(atomic_path(layout_path))
+    with atomic_paths(photo_path, layout_path) as (photo_tmp, layout_tmp):
         if fmt == "png" and orientation == 1:
             write_png(photo_tmp, stored, bits=bits)
         else:

@@ -46,8 +46,9 @@ def run(args) -> int:
     import numpy as np
 
     from .._errors import DiffwashError, FailureError
-    from .._io import refuse_overwriting_inputs
+    from .._io import atomic_paths, refuse_overwriting_inputs
     from .._scene import load_scene, referenced_files
+    from ..fit import save_image_report
     from ..fit._image import fit_image, load_cameras, parse_fit_list
 
     t0 = time.perf_counter()
@@ -91,12 +92,12 @@ def run(args) -> int:
     if not fit.converged and not args.allow_unconverged:
         raise FailureError(f"the fit did not converge ({fit.message}); nothing was written (use --allow-unconverged "
                            f"to write it anyway, or raise --max-steps)")  # fmt: skip
-    fit.save(out)
+    with atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+        fit.save(out_tmp)
+        if report is not None:
+            save_image_report(report_tmp, fit, args.targets, scenes)
     print(f"wrote {out}")
     if report is not None:
-        from ..fit import save_image_report
-
-        save_image_report(report, fit, args.targets, scenes)
         print(f"wrote {report}")
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0

@@ -61,8 +61,8 @@ def run(args) -> int:
     from .._scene import load_scene, referenced_files
 
     out = Path(args.output)
-    image_format_for(out, bits=args.bits, alpha=args.alpha, field="--output")
     refuse_overwriting_inputs({"--output": out}, [args.scene, *referenced_files(args.scene)])
+    image_format_for(out, bits=args.bits, alpha=args.alpha, field="--output")
     size = parse_size(args.size) if args.size is not None else None
     start = time.perf_counter()
     scene = load_scene(args.scene, shading=args.shading, size=size)

@@ -122,3 +122,14 @@ def test_json_readers_refuse_rather_than_crash_on_wrong_types(tmp_path):
     (tmp_path / "lib.json").write_text(json.dumps({"pigments": [{"name": "a", "K": [1, 1, 10**400], "S": [0, 0, 0]}]}))
     with pytest.raises(DiffwashError, match=r"pigments\[0\]\.K"):
         diffwash.pigments.library(tmp_path / "lib.json")
+
+
+@pytest.mark.parametrize("doc, reader", [
+    ({"paper": {"box": [0, 0, 1, 1], "x\ny": 1}, "patches": []}, diffwash.fit.read_layout),
+    ({"mesh": "m.ply", "came\rra": {}}, diffwash.load_scene),
+])  # fmt: skip
+def test_an_error_about_a_key_with_a_line_break_is_still_one_line(tmp_path, doc, reader):
+    (tmp_path / "x.json").write_text(json.dumps(doc))
+    with pytest.raises(DiffwashError) as e:
+        reader(tmp_path / "x.json")
+    assert "\n" not in str(e.value) and "\r" not in str(e.value) and "\\" in str(e.value)  # was two lines

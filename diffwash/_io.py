@@ -33,9 +33,10 @@ import numpy as np
 from ._errors import DiffwashError, FailureError
 
 __all__ = [
-    "read_json", "write_json", "write_text", "atomic_path", "atomic_paths", "atomic_folder", "read_image", "write_png", "write_image",
-    "save_figure", "image_format_for", "to_uint", "finite_number", "check_float32", "refuse_overwriting_inputs",
-    "max_image_pixels", "image_pixel_limit", "MAX_IMAGE_PIXELS", "IMAGE_FORMATS", "FLOAT32_MAX",
+    "read_json", "write_json", "write_text", "atomic_path", "atomic_paths", "atomic_folder", "read_image",
+    "write_png", "write_image", "save_figure", "image_format_for", "to_uint", "finite_number", "check_float32",
+    "refuse_overwriting_inputs", "max_image_pixels", "image_pixel_limit", "MAX_IMAGE_PIXELS", "IMAGE_FORMATS",
+    "FLOAT32_MAX",
 ]  # fmt: skip
 
 #: The largest magnitude float32 holds; diffwash computes in float32, so larger numbers are refused.

@@ -34,7 +34,6 @@ import contextlib
 import io
 import json
 import math
-import os
 import signal
 import struct
 import sys

@@ -55,7 +55,7 @@ def run(args) -> int:
 
     import numpy as np
 
-    from .._errors import DiffwashError, FailureError
+    from .._errors import FailureError
     from .._io import image_format_for, refuse_overwriting_inputs, write_image
     from .._render import render_rgba
     from .._scene import load_scene, referenced_files

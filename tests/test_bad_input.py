@@ -29,6 +29,8 @@ SPHERE = DATA / "meshes" / "sphere.ply"
 def cli(capsys, tmp_path, monkeypatch):
     """`diffwash ARGS...` in this process, from `tmp_path`: returns (status, stdout, stderr)."""
     monkeypatch.chdir(tmp_path)
+    # main() sets MPLBACKEND for its figures; undone after the test (a notebook kernel started later inherits it).
+    monkeypatch.setenv("MPLBACKEND", "Agg")
 
     def run(*args):
         try:

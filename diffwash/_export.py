@@ -19,11 +19,8 @@ folder beside it, which is then renamed.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +29,7 @@ import trimesh
 
 from . import lut as _lut
 from ._errors import DiffwashError
+from ._io import atomic_folder
 from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
 from ._scene import Scene, load_scene, scene_to_dict
 from ._viewer import viewer_html
@@ -122,16 +120,11 @@ def export(
         if any(folder.iterdir()) and not (overwrite and _is_export(folder)):
             why = "holds files that are not a diffwash export" if overwrite else "is not empty (use --overwrite to replace a previous export)"
             raise DiffwashError(why, file=folder)
-    parent = folder.parent if str(folder.parent) else Path(".")
-    if not parent.is_dir():
-        raise DiffwashError("output folder's parent does not exist", file=parent)
+    if not (folder.parent if str(folder.parent) else Path(".")).is_dir():
+        raise DiffwashError("output folder's parent does not exist", file=folder.parent)
 
     table = _lut.bake(params, size, kind=kind)
-    try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".part", dir=parent))
-    except OSError as e:
-        raise DiffwashError(f"cannot write here: {e.strerror}", file=parent) from None
-    try:
+    with atomic_folder(folder) as tmp:
         written = _lut.save(tmp / f"lut{_lut.FORMATS[fmt][0]}", table, fmt)
         colour = "lut-rt" if kind == "rt" else "lut"
         lut_srgb = _lut.FORMATS[fmt][1] == "srgb"
@@ -154,32 +147,4 @@ def export(
         (tmp / "scene.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
         (tmp / "viewer.html").write_text(viewer_html(scene, table, glb, params=params), encoding="utf-8")
         written += [tmp / n for n in ("uniforms.json", "mesh.glb", "scene.json", "viewer.html")]
-        os.chmod(tmp, 0o777 & ~_umask())
-        _replace_folder(tmp, folder)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return [folder / p.name for p in written]
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _replace_folder(tmp: Path, folder: Path) -> None:
-    """Rename `tmp` to `folder`; an existing `folder` is moved aside first and removed after."""
-    old = None
-    if folder.exists():
-        old = folder.with_name(f".{folder.name}.old-{os.getpid()}")
-        folder.rename(old)
-    try:
-        os.replace(tmp, folder)
-    except OSError as e:
-        if old is not None:
-            with contextlib.suppress(OSError):
-                old.rename(folder)
-        raise DiffwashError(f"cannot create the export folder: {e.strerror}", file=folder) from None
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)

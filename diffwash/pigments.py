@@ -33,7 +33,7 @@ import numpy as np
 from jaxtyping import ArrayLike, Float
 
 from ._errors import DiffwashError
-from ._io import finite_number, read_json, write_json
+from ._io import check_float32, finite_number, read_json, write_json
 
 __all__ = ["Pigment", "unlabelled", "load", "library", "names", "parse", "save", "DEFAULTS"]
 
@@ -97,6 +97,7 @@ def _rgb(value: Any, file: Any, field: str) -> np.ndarray:
     for v in value:
         if not finite_number(v):
             raise DiffwashError(f"must be finite numbers, got {v!r}", file=file, field=field)
+        check_float32(v, file=file, field=field)
         if v < 0:
             raise DiffwashError(f"must be >= 0, got {v!r}", file=file, field=field)
     return np.asarray(value, np.float64)
@@ -123,7 +124,7 @@ def parse(obj: Any, *, file: str | os.PathLike | None = None, where: str = "") -
         v = obj.get(key, default)
         if not finite_number(v) or v < 0:
             raise DiffwashError(f"must be a finite number >= 0, got {v!r}", file=file, field=ctx + key)
-        extra[key] = float(v)
+        extra[key] = check_float32(v, file=file, field=ctx + key)
     return Pigment(K=K, S=S, name=name.strip(), **extra)
 
 
@@ -133,8 +134,22 @@ def _read_file(path: str | os.PathLike) -> list[Pigment]:
         items = data["pigments"]
         if not isinstance(items, list) or not items:
             raise DiffwashError("must be a non-empty list of pigments", file=path, field="pigments")
-        return [parse(p, file=path, where=f"pigments[{i}]") for i, p in enumerate(items)]
+        pigments = [parse(p, file=path, where=f"pigments[{i}]") for i, p in enumerate(items)]
+        _refuse_colliding_names(pigments, path)
+        return pigments
     return [parse(data, file=path)]
+
+
+def _refuse_colliding_names(pigments: list[Pigment], path: Any) -> None:
+    """Two pigments whose names match as `load` matches names (ignoring case and runs of spaces) are refused:
+    a name would pick one of them silently."""
+    seen: dict[str, int] = {}
+    for i, p in enumerate(pigments):
+        j = seen.setdefault(_key(p.name), i)
+        if j != i:
+            raise DiffwashError(f"{p.name!r} and pigments[{j}].name {pigments[j].name!r} name the same pigment "
+                                "(names are matched ignoring case and spaces)", file=path,
+                                field=f"pigments[{i}].name")  # fmt: skip
 
 
 def library(path: str | os.PathLike | None = None) -> dict[str, Pigment]:

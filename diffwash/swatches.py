@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import colorimetry, km
-from ._io import atomic_path
+from ._io import save_figure
 from .pigments import Pigment
 from .shading import DEFAULT_PAPER
 
@@ -91,12 +91,11 @@ def save_chart(
     coats: Sequence[float] = DEFAULT_COATS,
     paper: Sequence[float] = DEFAULT_PAPER,
 ) -> None:
-    """Draw the swatch chart and write it as a PNG, atomically."""
+    """Draw the swatch chart and write it as the PNG or JPEG its extension names, atomically."""
     import matplotlib.pyplot as plt
 
     fig = draw_chart(pigments, coats, paper)
     try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", facecolor="white")
+        save_figure(path, fig, facecolor="white")
     finally:
         plt.close(fig)

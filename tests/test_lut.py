@@ -198,9 +198,9 @@ def test_png_orientation_read_independently(tmp_path, tables):
 
 
 def test_nothing_half_written(tmp_path, tables):
-    # The sidecar's name is taken by a folder, so the last file cannot be renamed into place.
+    # The sidecar's name is taken by a folder: refused before anything is written.
     (tmp_path / "lut.json").mkdir()
-    with pytest.raises(OSError):
+    with pytest.raises(diffwash.DiffwashError, match=r"lut\.json: is a folder"):
         lut.save(tmp_path / "lut.png", tables["colour"])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lut.json"]
     assert not (tmp_path / "lut.png").exists()

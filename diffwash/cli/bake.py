@@ -8,6 +8,8 @@ records the size, ranges, encoding, pigments, paper and constants.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 NAME = "bake"
 HELP = "bake the glaze colour over (wash, unlit) thickness into a LUT texture"
 
@@ -31,6 +33,16 @@ def parse_lut_size(text: str, field: str = "--size"):
         raise DiffwashError(e.problem, field=field) from None
 
 
+def lut_outputs(path, fmt: str, kind: str) -> dict:
+    """The files a LUT written to `path` occupies besides `path` itself (its sidecar, its R and T images),
+    by what they are, for `refuse_overwriting_inputs`."""
+    from .. import lut
+
+    images = lut._image_paths(Path(path), kind) if fmt.startswith("png") else {}
+    return {"--output (sidecar)": lut.sidecar_path(path),
+            **{f"--output ({k} image)": p for k, p in images.items() if k != "colour"}}  # fmt: skip
+
+
 def add_arguments(p) -> None:
     from ..lut import FORMATS
 
@@ -50,13 +62,17 @@ def run(args) -> int:
     import sys
 
     from .. import lut
-    from .._scene import load_scene
+    from .._io import refuse_overwriting_inputs
+    from .._scene import load_scene, referenced_files
 
     size = parse_lut_size(args.size)
     fmt = lut.format_for(args.output, args.format)
+    kind = "rt" if args.rt else "colour"
+    refuse_overwriting_inputs({"--output": args.output, **lut_outputs(args.output, fmt, kind)},
+                              [args.scene, *referenced_files(args.scene)])  # fmt: skip
     scene = load_scene(args.scene)
     large = size[0] * size[1] >= 2048 * 2048 and sys.stderr.isatty()
-    table = lut.bake(scene, size, kind="rt" if args.rt else "colour", progress=lut.print_progress if large else None)
+    table = lut.bake(scene, size, kind=kind, progress=lut.print_progress if large else None)
     written = lut.save(args.output, table, fmt)
     n, m = table.size
     print(f"wrote {', '.join(str(w) for w in written)} ({n}x{m} {table.kind} LUT, {fmt}; wash_max {table.wash_max:g}, unlit_max {table.unlit_max:g})")

@@ -24,11 +24,13 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from .._scene import load_scene
     from .._export import export
+    from .._io import refuse_overwriting_inputs
+    from .._scene import load_scene, referenced_files
     from .bake import parse_lut_size
 
     size = parse_lut_size(args.size)
+    refuse_overwriting_inputs({"--output": args.output}, [args.scene, *referenced_files(args.scene)], folders=["--output"])
     scene = load_scene(args.scene)
     written = export(
         scene, args.output, target=args.target, size=size, fmt=args.format, kind="rt" if args.rt else "colour", overwrite=args.overwrite

@@ -1,4 +1,4 @@
-"""Render a scene file as a watercolour image (8-bit sRGB PNG, or 16-bit with --bits 16).
+"""Render a scene file as a watercolour image (8-bit sRGB PNG, or 16-bit with --bits 16; JPEG for a .jpg name).
 
 The Python equivalent is `diffwash.render(diffwash.load_scene(SCENE))`.
 """
@@ -14,7 +14,7 @@ USES_JAX = True
 
 def add_arguments(p) -> None:
     p.add_argument("scene", metavar="SCENE.json", help="the scene file (format: docs/scene-format.md)")
-    p.add_argument("-o", "--output", required=True, metavar="PNG", help="where to write the image")
+    p.add_argument("-o", "--output", required=True, metavar="IMAGE", help="where to write the image: .png, or .jpg/.jpeg")
     p.add_argument(
         "--shading", choices=("per-pixel", "per-vertex"), help="shading mode (default: the scene's, else per-pixel)"
     )
@@ -55,14 +55,14 @@ def run(args) -> int:
 
     import numpy as np
 
-    from .._errors import DiffwashError, FailureError
-    from .._io import write_png
+    from .._errors import FailureError
+    from .._io import image_format_for, refuse_overwriting_inputs, write_image
     from .._render import render_rgba
-    from .._scene import load_scene
+    from .._scene import load_scene, referenced_files
 
     out = Path(args.output)
-    if out.suffix.lower() != ".png":
-        raise DiffwashError(f"the output must be a .png file, got {out.name!r}", field="--output")
+    refuse_overwriting_inputs({"--output": out}, [args.scene, *referenced_files(args.scene)])
+    image_format_for(out, bits=args.bits, alpha=args.alpha, field="--output")
     size = parse_size(args.size) if args.size is not None else None
     start = time.perf_counter()
     scene = load_scene(args.scene, shading=args.shading, size=size)
@@ -72,7 +72,7 @@ def run(args) -> int:
     image = np.asarray(_encode(rgba), np.float64)
     if not args.alpha:
         image = image[..., :3]
-    write_png(out, image, bits=args.bits)
+    write_image(out, image, bits=args.bits)
     elapsed = time.perf_counter() - start
     n_tri = len(scene.mesh.faces)
     print(

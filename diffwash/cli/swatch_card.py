@@ -28,13 +28,14 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     from .. import pigments
     from .._errors import DiffwashError
+    from .._io import image_format_for, refuse_overwriting_inputs
     from ..swatchcard import IDEAL, CameraEffects, make_swatch_card, save_swatch_card
 
     out = Path(args.output)
-    if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
-        raise DiffwashError(f"must be a .jpg, .jpeg or .png file, got {out.name!r}", field="--output")
-    if args.bits == 16 and out.suffix.lower() != ".png":
-        raise DiffwashError("16 bits needs a .png photo", field="--bits")
+    image_format_for(out, bits=args.bits, field="--output")
+    layout = Path(args.layout) if args.layout else out.with_suffix(".json")
+    pigment_file = [args.pigment] if Path(args.pigment).is_file() else []
+    refuse_overwriting_inputs({"--output": out, "--layout": layout}, pigment_file)
     try:
         coats = [float(c) for c in args.coats.split(",")]
     except ValueError:
@@ -44,7 +45,6 @@ def run(args) -> int:
     pigment = pigments.load(args.pigment)
     effects = IDEAL if args.ideal else CameraEffects()
     card = make_swatch_card(pigment, coats=coats, black=not args.no_black, effects=effects, seed=args.seed)
-    layout = Path(args.layout) if args.layout else out.with_suffix(".json")
     card.layout["name"] = pigment.name
     save_swatch_card(card, out, layout, bits=args.bits)
     h, w = card.photo.shape[:2]

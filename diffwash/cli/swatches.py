@@ -1,4 +1,4 @@
-"""Draw pigments at 0.25, 0.5, 1, 2 and 4 coats over white paper and over black, as a PNG chart."""
+"""Draw pigments at 0.25, 0.5, 1, 2 and 4 coats over white paper and over black, as a PNG (or JPEG) chart."""
 
 from __future__ import annotations
 
@@ -8,17 +8,22 @@ HELP = "draw a swatch chart of pigments over paper and over black"
 
 def add_arguments(p) -> None:
     p.add_argument("names", nargs="+", metavar="NAME", help="pigment names (or pigment files); 'all' for the whole library")
-    p.add_argument("-o", "--output", required=True, metavar="PNG", help="where to write the chart")
+    p.add_argument("-o", "--output", required=True, metavar="IMAGE", help="where to write the chart: .png, or .jpg/.jpeg")
     p.add_argument("--coats", metavar="LIST", default="0.25,0.5,1,2,4", help="comma-separated coats (default: %(default)s)")
     p.add_argument("--paper", nargs=3, type=float, metavar=("R", "G", "B"), help="linear reflectance of the paper")
 
 
 def run(args) -> int:
+    from pathlib import Path
+
     from .. import pigments
     from .._errors import DiffwashError
+    from .._io import image_format_for, refuse_overwriting_inputs
     from ..shading import DEFAULT_PAPER
     from ..swatches import save_chart
 
+    image_format_for(args.output, field="--output")
+    refuse_overwriting_inputs({"--output": args.output}, [n for n in args.names if Path(n).is_file()])
     try:
         coats = [float(c) for c in args.coats.split(",")]
     except ValueError:

@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import DiffwashError
-from .._io import finite_number, read_json
+from .._io import check_float32, finite_number, read_json
 from ..shading import DEFAULT_PAPER
 
 __all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "Calibration", "calibrate", "PatchStats",
@@ -119,6 +119,8 @@ def _fail(msg: str, file: Any, fld: str | None) -> DiffwashError:
 def _box(value: Any, file: Any, fld: str, size: tuple[int, int] | None) -> Box:
     if not isinstance(value, list) or len(value) != 4 or not all(finite_number(v) for v in value):
         raise _fail(f"must be [x0, y0, x1, y1] (4 pixel coordinates), got {value!r}", file, fld)
+    for i, v in enumerate(value):
+        check_float32(v, file=file, field=f"{fld}[{i}]")
     if not all(float(v).is_integer() for v in value):
         raise _fail(f"must be whole pixel coordinates, got {value!r}", file, fld)
     x0, y0, x1, y1 = (int(v) for v in value)
@@ -186,6 +188,7 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
         coats = p["coats"]
         if not finite_number(coats) or coats <= 0:
             raise _fail(f"must be a number of coats > 0, got {coats!r}", file, f"{where}.coats")
+        check_float32(coats, file=file, field=f"{where}.coats")
         ground = p["ground"]
         if ground not in GROUNDS:
             raise _fail(f"unknown ground {ground!r} (must be 'paper' or 'black')", file, f"{where}.ground")

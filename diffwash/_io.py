@@ -29,6 +29,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import png  # pypng: 16-bit RGB PNGs, which Pillow cannot write
+from PIL import Image, ImageOps, UnidentifiedImageError
 
 from ._errors import DiffwashError, FailureError
 
@@ -328,7 +330,6 @@ def write_png(path: str | os.PathLike, img: np.ndarray, bits: int = 8) -> None:
     Float images are taken as values in [0, 1] (already display-encoded);
     integer images are written as they are.
     """
-    import png  # pypng: 16-bit RGB PNGs, which Pillow cannot write
 
     a = _channels(img)
     if a.dtype.kind == "f":
@@ -351,7 +352,6 @@ def write_image(path: str | os.PathLike, img: np.ndarray, bits: int = 8, *, qual
     if image_format_for(path, bits=bits, alpha=a.shape[2] in (2, 4)) == "png":
         write_png(path, a, bits)
         return
-    from PIL import Image
 
     a = to_uint(a, 8) if a.dtype.kind == "f" else a.astype(np.uint8)
     im = Image.fromarray(a[..., 0] if a.shape[2] == 1 else a)
@@ -414,7 +414,6 @@ _PILLOW_LOCK = threading.Lock()
 def _pillow_guard() -> Iterator[None]:
     """Pillow with its own decompression-bomb check off (ours, the same check with our limit, runs on the
     header before anything is decoded) and its warnings about odd but readable files silenced."""
-    from PIL import Image
 
     with _PILLOW_LOCK, warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -482,7 +481,6 @@ def read_image(
 
 def _read_png(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
     """A PNG through pypng (16 bits kept): size checked from the header first."""
-    import png
 
     try:
         with open(path, "rb") as f:
@@ -511,7 +509,6 @@ def _read_png(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
 
 def _png_orientation(path: Path) -> int:
     """The EXIF orientation tag of a PNG's eXIf chunk (rare; 1 when there is none)."""
-    from PIL import Image
 
     with open(path, "rb") as f:
         f.seek(8)
@@ -537,7 +534,6 @@ def _png_orientation(path: Path) -> int:
 
 def _read_pillow(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
     """A JPEG (or TIFF, WebP, BMP) through Pillow: size checked from the header first."""
-    from PIL import Image, ImageOps, UnidentifiedImageError
 
     try:
         with _pillow_guard(), Image.open(path, formats=_PILLOW_FORMATS) as im:

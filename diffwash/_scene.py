@@ -28,6 +28,7 @@ from typing import Any
 
 import equinox as eqx
 import numpy as np
+import trimesh
 
 from . import pigments as _pigments
 from ._camera import Camera
@@ -152,7 +153,6 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
     Vertex normals are the file's own where it has them, else trimesh's
     area-weighted `vertex_normals`.
     """
-    import trimesh
 
     path = Path(path)
     where = file if file is not None else path

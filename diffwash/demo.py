@@ -27,11 +27,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.figure import Figure  # not pyplot: the caller's backend (a notebook's) stays as it is
 
+from . import fit, lut, preview
 from ._errors import DiffwashError
-from ._io import atomic_folder, read_json, save_figure, write_json, write_png
+from ._export import export
+from ._io import atomic_folder, read_image, read_json, save_figure, write_json, write_png
+from ._render import render
 from ._scene import load_scene
 from ._version import __version__
+from .colorimetry import to_display
 
 __all__ = ["DemoResult", "run", "DATA", "FIT", "MARKER"]
 
@@ -150,10 +155,6 @@ def _may_write(folder: Path, force: bool) -> bool:
 
 def _run_steps(res: DemoResult, steps: _Steps) -> None:
     """The demo's six steps, writing into `res.folder`."""
-    from . import fit
-    from ._io import read_image
-    from .fit import save_image_report, save_swatch_report
-
     folder, out = res.folder, steps.out
 
     # 1. The pigment, from the swatch card.
@@ -165,7 +166,7 @@ def _run_steps(res: DemoResult, steps: _Steps) -> None:
     swatch.save(folder / "pigment.json")
     res.files["pigment.json"] = folder / "pigment.json"
     card, _ = read_image(folder / "card.jpg")
-    save_swatch_report(folder / "swatch-fit.png", swatch, photo=card, layout=fit.read_layout(folder / "card.json"))
+    fit.save_swatch_report(folder / "swatch-fit.png", swatch, photo=card, layout=fit.read_layout(folder / "card.json"))
     res.files["swatch-fit.png"] = folder / "swatch-fit.png"
     res.swatch = swatch
     res.seconds["swatch fit"] = steps.done(
@@ -189,7 +190,7 @@ def _run_steps(res: DemoResult, steps: _Steps) -> None:
     image_fit.save(folder / "fitted-scene.json")
     res.files["fitted-scene.json"] = folder / "fitted-scene.json"
     res.image = image_fit
-    save_image_report(folder / "image-fit.png", image_fit, [folder / "target.png"], [scene])
+    fit.save_image_report(folder / "image-fit.png", image_fit, [folder / "target.png"], [scene])
     res.files["image-fit.png"] = folder / "image-fit.png"
     res.seconds["image fit"] = steps.done(
         t, f"{'converged' if image_fit.converged else 'NOT converged'} in {image_fit.iterations} steps, "
@@ -200,11 +201,6 @@ def _run_steps(res: DemoResult, steps: _Steps) -> None:
 
 def _realtime_steps(res: DemoResult, steps: _Steps, fitted: Any) -> None:
     """Steps 3-6: bake the LUT, export, draw an OpenGL frame, write the report."""
-    from . import lut, preview
-    from ._export import export
-    from ._render import render
-    from .colorimetry import srgb_encode
-
     folder = res.folder
     t = steps.start("baking the 256x256 LUT (lut.png + lut.json)")
     table = lut.bake(fitted, 256)
@@ -230,7 +226,7 @@ def _realtime_steps(res: DemoResult, steps: _Steps, fitted: Any) -> None:
     res.seconds["preview"] = steps.done(t, res.preview_renderer)
 
     t = steps.start("writing the one-page report (report.png)")
-    fitted_img = np.clip(np.asarray(srgb_encode(render(fitted))), 0, 1)
+    fitted_img = to_display(render(fitted))
     _report(folder / "report.png", res, table, frame, fitted_img)
     res.files["report.png"] = folder / "report.png"
     res.seconds["report"] = steps.done(t)
@@ -238,20 +234,19 @@ def _realtime_steps(res: DemoResult, steps: _Steps, fitted: Any) -> None:
 
 def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, fitted_img: np.ndarray) -> None:
     """One page: the card and its fit, the target and its fit, the LUT and the OpenGL frame."""
-    from matplotlib.figure import Figure  # not pyplot: the caller's backend (a notebook's) stays as it is
-
-    from ._io import read_image
-
-    swatch, image = res.swatch, res.image
-    truth_p = res.truth["pigment"]
-    card, _ = read_image(res.folder / "card.jpg")
-    target, _ = read_image(res.folder / "target.png")
-    from .colorimetry import srgb_encode
-
     fig = Figure(figsize=(16, 10.5), dpi=100)
     grid = fig.add_gridspec(3, 4, height_ratios=[1, 1, 1], hspace=0.45, wspace=0.25)
     fig.suptitle("diffwash demo: swatch photo -> pigment -> shading fit -> LUT -> real-time shader", fontsize=15)
+    _report_swatch_row(fig, grid, res)
+    _report_image_row(fig, grid, res, fitted_img)
+    _report_realtime_row(fig, grid, res, table, frame)
+    save_figure(path, fig, facecolor="white")
 
+
+def _report_swatch_row(fig: Figure, grid: Any, res: DemoResult) -> None:
+    """Row 1: the card, its patches photographed and fitted, and the pigment against the truth."""
+    swatch, truth_p = res.swatch, res.truth["pigment"]
+    card, _ = read_image(res.folder / "card.jpg")
     ax = fig.add_subplot(grid[0, 0])
     ax.imshow(card)
     ax.set_title("1. the swatch-card photo (card.jpg)")
@@ -263,8 +258,7 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     cells = np.ones((2 * len(grounds), len(coats), 3))
     for p in swatch.patches:
         i, j = 2 * grounds.index(p.ground), coats.index(p.coats)
-        cells[i, j] = np.clip(np.asarray(srgb_encode(p.observed)), 0, 1)
-        cells[i + 1, j] = np.clip(np.asarray(srgb_encode(p.fitted)), 0, 1)
+        cells[i, j], cells[i + 1, j] = to_display(p.observed), to_display(p.fitted)
         ax.text(j, i + 0.5, f"ΔE {p.delta_e:.2f}", ha="center", va="center", fontsize=7, color="white")
     ax.imshow(cells, aspect="auto", interpolation="nearest")
     ax.set_yticks(range(2 * len(grounds)), [f"{g}: {w}" for g in grounds for w in ("photo", "fitted")], fontsize=8)
@@ -283,14 +277,16 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     ax.set_title("the fitted pigment against the card's truth (per coat)")
     ax.legend(ncols=4, fontsize=8)
 
-    ax = fig.add_subplot(grid[1, 0])
-    ax.imshow(target)
-    ax.set_title("2. the target image (target.png)")
-    ax.axis("off")
-    ax = fig.add_subplot(grid[1, 1])
-    ax.imshow(fitted_img)
-    ax.set_title("rendered with the fitted constants")
-    ax.axis("off")
+
+def _report_image_row(fig: Figure, grid: Any, res: DemoResult, fitted_img: np.ndarray) -> None:
+    """Row 2: the target, the fitted render, the loss curve and the constants against the truth."""
+    image = res.image
+    target, _ = read_image(res.folder / "target.png")
+    for col, img, title in ((0, target, "2. the target image (target.png)"), (1, fitted_img, "rendered with the fitted constants")):
+        ax = fig.add_subplot(grid[1, col])
+        ax.imshow(img)
+        ax.set_title(title)
+        ax.axis("off")
     ax = fig.add_subplot(grid[1, 2])
     ax.semilogy(np.arange(1, len(image.history) + 1), image.history, "o-", ms=3)
     ax.set_xlabel("solver step")
@@ -308,8 +304,11 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     tab.scale(1.1, 1.6)
     ax.set_title("shading constants")
 
+
+def _report_realtime_row(fig: Figure, grid: Any, res: DemoResult, table: Any, frame: np.ndarray | None) -> None:
+    """Row 3: the LUT, the OpenGL frame, and what was written."""
     ax = fig.add_subplot(grid[2, 0])
-    ax.imshow(np.clip(np.asarray(srgb_encode(table.colour)), 0, 1), extent=[0, 1, 1, 0])
+    ax.imshow(to_display(table.colour), extent=[0, 1, 1, 0])
     ax.set_xlabel("wash thickness / wash_max")
     ax.set_ylabel("unlit thickness / unlit_max")
     ax.set_title("3. the baked LUT (lut.png)")
@@ -329,7 +328,6 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
         + "\n\ntimes: " + ", ".join(f"{k} {v:.1f} s" for k, v in res.seconds.items())
     )  # fmt: skip
     ax.text(0, 1, text, va="top", family="monospace", fontsize=9)
-    save_figure(path, fig, facecolor="white")
 
 
 def main_summary(res: DemoResult, stream: Any = None) -> None:

@@ -77,6 +77,7 @@ __all__ = [
     "load_encoded",
     "encoded",
     "check_size",
+    "files",
     "format_for",
     "sidecar",
     "sidecar_path",
@@ -303,6 +304,13 @@ def sidecar_path(path: str | os.PathLike) -> Path:
     """The sidecar of a LUT file: `lut.png` -> `lut.json` (a `.json` path is its own)."""
     path = Path(path)
     return path if path.suffix.lower() == ".json" else path.with_suffix(".json")
+
+
+def files(path: str | os.PathLike, fmt: str, kind: str) -> dict[str, Path]:
+    """Every file a LUT of `kind` saved as `fmt` at `path` occupies, by what it holds (images and sidecar)."""
+    path = Path(path)
+    images = _image_paths(path, kind) if fmt.startswith("png") else {kind: path}
+    return {**images, "sidecar": sidecar_path(path)}
 
 
 def _image_paths(path: Path, kind: str) -> dict[str, Path]:

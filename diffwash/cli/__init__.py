@@ -17,9 +17,10 @@ import os
 import sys
 from collections.abc import Sequence
 
-from .._errors import DiffwashError
-from .._io import image_pixel_limit
-from .._version import __version__
+import jax
+
+from .. import DiffwashError, __version__
+from .. import io as dio
 
 __all__ = ["main", "COMMANDS", "add_image_limit"]
 
@@ -38,8 +39,6 @@ def enable_compilation_cache() -> None:
     folder = os.environ.get("DIFFWASH_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "diffwash", "jax"))
     if folder.lower() in ("", "off", "0", "none"):
         return
-    import jax
-
     try:
         os.makedirs(folder, exist_ok=True)
     except OSError:
@@ -58,10 +57,8 @@ class _Parser(argparse.ArgumentParser):
 
 def add_image_limit(p: argparse.ArgumentParser) -> None:
     """The `--max-image-pixels` option of the commands that read photos or target images."""
-    from .._io import MAX_IMAGE_PIXELS, PIXELS_ENV
-
     p.add_argument("--max-image-pixels", metavar="N", default=None,
-                   help=f"read images of up to N pixels (default: ${PIXELS_ENV}, else {MAX_IMAGE_PIXELS:,}); larger "
+                   help=f"read images of up to N pixels (default: ${dio.PIXELS_ENV}, else {dio.MAX_IMAGE_PIXELS:,}); larger "
                         f"ones are refused from their header, before decoding")  # fmt: skip
 
 
@@ -90,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args._uses_jax:
             enable_compilation_cache()
-        with image_pixel_limit(getattr(args, "max_image_pixels", None), "--max-image-pixels"):
+        with dio.image_pixel_limit(getattr(args, "max_image_pixels", None), "--max-image-pixels"):
             return int(args._run(args) or 0)
     except DiffwashError as e:
         print(f"diffwash: error: {e}", file=sys.stderr)

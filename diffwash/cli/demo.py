@@ -4,6 +4,8 @@ frame, and write a one-page report."""
 
 from __future__ import annotations
 
+from .. import demo
+
 NAME = "demo"
 HELP = "run the whole product on bundled data"
 
@@ -17,9 +19,6 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from ..demo import main_summary
-    from ..demo import run as run_demo
-
-    res = run_demo(args.output, progress=not args.quiet, force=args.force)
-    main_summary(res)
+    res = demo.run(args.output, progress=not args.quiet, force=args.force)
+    demo.main_summary(res)
     return 0

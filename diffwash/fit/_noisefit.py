@@ -46,7 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.stats import t as student_t
 
-from ._kmfit import FitModel, Rows, _compiled, effective, pad_rows, predict
+from ._kmfit import COMPILER_OPTIONS, FitModel, Rows, _compiled, effective, pad_rows, predict
 
 __all__ = ["Observations", "NoiseFit", "fit_noise", "Uncertainty", "uncertainty", "PARAMETERS"]
 
@@ -159,7 +159,7 @@ def _differences(model: FitModel, obs: Observations, theta: dict[str, np.ndarray
     return np.asarray(_differences_jit(model, *args, jnp.asarray(obs.lo), jnp.asarray(obs.hi)), np.float64)
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(jax.jit, static_argnums=0, compiler_options=COMPILER_OPTIONS)
 def _differences_jit(model, theta, amount, ground, photo, rgb, lo, hi):
     pred = predict(model, theta, amount, ground) * jnp.exp(theta["log_gain"][photo])
     return effective(pred, rgb, lo, hi) - rgb
@@ -246,7 +246,7 @@ def _covariance(J: np.ndarray) -> np.ndarray:
     return cov
 
 
-@jax.jit
+@functools.partial(jax.jit, compiler_options=COMPILER_OPTIONS)
 def _pred_jac(log_KS: jax.Array, amount: jax.Array, ground: jax.Array):
     def f(x):
         return predict(FitModel(thickness="linear"), {"log_K": x[:3], "log_S": x[3:]}, amount, ground)

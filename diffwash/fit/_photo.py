@@ -330,9 +330,8 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
         degree -= 1
     if degree < 2:
         notes.append(f"little bare paper visible around the boxes: light falloff modelled to degree {degree}")
-    cell = np.asarray(ys // _cell_size(H, W)) * 10007 + xs // _cell_size(H, W)  # ~ patch-sized cells of paper
-    if degree > 2:  # the degree (from 2) that best predicts paper it was not fitted to
-        degree = min(range(2, degree + 1), key=lambda d: _cross_validated(_poly(xs, ys, W, H, d), y, cell))
+    size = _cell_size(H, W)
+    cell = (ys // size) * (W // size + 1) + xs // size  # the paper in patch-sized cells
     A = _poly(xs, ys, W, H, degree)
     coef, use = _trimmed_lstsq(A, y)
     lack = _lack_of_fit(y - A @ coef, use, cell)
@@ -350,6 +349,7 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
 
 
 def _cell_size(H: int, W: int) -> int:
+    """Side of the cells the light model's lack of fit is measured in (about a patch)."""
     return max(16, min(H, W) // 8)
 
 
@@ -376,20 +376,6 @@ def _cell_means(r: np.ndarray, cell: np.ndarray, least: int = 10) -> tuple[np.nd
     mean = sums[ok] / counts[ok]
     var = np.maximum(sq[ok] / counts[ok] - mean**2, 0) / counts[ok]
     return mean, var
-
-
-def _cross_validated(A: np.ndarray, y: np.ndarray, cell: np.ndarray) -> float:
-    """Mean squared cell-mean error of a light model fitted to the other half of the cells (a checkerboard)."""
-    parity = ((cell // 10007) + (cell % 10007)) % 2
-    err = []
-    for k in (0, 1):
-        train = parity != k
-        if train.sum() < 2 * A.shape[1] or (~train).sum() == 0:
-            return np.inf
-        coef, _ = _trimmed_lstsq(A[train], y[train])
-        mean, _ = _cell_means(y[~train] - A[~train] @ coef, cell[~train])
-        err.append(np.mean(mean**2) if len(mean) else np.inf)
-    return float(np.mean(err))
 
 
 def _lack_of_fit(r: np.ndarray, use: np.ndarray, cell: np.ndarray) -> float:

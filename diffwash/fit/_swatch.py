@@ -39,7 +39,7 @@ from ..pigments import save as save_pigments
 from ._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
 from ._kmfit import starts_for
 from ._noise import camera_noise_floor, jpeg_steps
-from ._noisefit import PARAMETERS, Observations, Uncertainty, fit_noise, uncertainty
+from ._noisefit import Observations, Uncertainty, fit_noise, uncertainty
 from ._noisefit import _prediction_and_jacobian
 from ._photo import Calibration, Layout, PatchStats, calibrate, inner_box, linearise, parse_layout, patch_stats
 from ._photo import read_layout
@@ -196,8 +196,8 @@ class SwatchFit:
         """Intervals of the linear reflectance at `coats` over `ground` (as `predict`), per channel.
 
         Propagates the covariance of the logs (calibration included) through
-        Kubelka-Munk (to first order, in log reflectance), with Student's t.
-        **Returns:** `(lower, upper)`, each (len(coats), 3).
+        Kubelka-Munk (to first order, in log reflectance), with Student's t;
+        a reflectance is at most 1. **Returns:** `(lower, upper)`, each (len(coats), 3).
         """
         unc = self._need_uncertainty()
         coats = np.atleast_1d(np.asarray(coats, np.float64))
@@ -208,7 +208,7 @@ class SwatchFit:
         var = np.einsum("ncj,jk,nck->nc", J, cov, J)
         sd_log = np.sqrt(np.maximum(var, 0)) / np.maximum(pred, 1e-12)
         t = unc.quantile(level)
-        return pred * np.exp(-t * sd_log), pred * np.exp(t * sd_log)
+        return pred * np.exp(-t * sd_log), np.minimum(pred * np.exp(t * sd_log), 1.0)
 
     @property
     def mean_delta_e(self) -> float:

@@ -497,7 +497,12 @@ def _step(solver, y, problem, state):
     fn = _objective(solver)
     y, state, _ = solver.step(fn, y, problem, {}, state, frozenset())
     done, result = solver.terminate(fn, y, problem, {}, state, frozenset())
-    return y, state, done, result, _state_loss(state), _stationarity(state)
+    # The stationarity test costs a Jacobian: only after a rejected step (an accepted one has the solver's test).
+    rejected = getattr(state, "num_steps_since_acceptance", jnp.array(1)) > 0
+    loss = _state_loss(state)
+    stationarity = jax.lax.cond(rejected, lambda: _stationarity(state).astype(loss.dtype),
+                                lambda: jnp.asarray(jnp.inf, loss.dtype))  # fmt: skip
+    return y, state, done, result, loss, stationarity
 
 
 def _stationarity(state: Any) -> Any:
@@ -543,9 +548,9 @@ def _iterate(solver, y0, problem, max_steps: int, progress, gtol: float) -> tupl
     """Step the solver by hand so that each step's loss can be shown.
 
     Converged when the solver's own test passes (optimistix's Cauchy test: a small step in both the
-    parameters and the residuals, relative `rtol` plus absolute `atol`), or when the last accepted
-    point is stationary to within `gtol` (`_stationarity`: where float rounding keeps the solver
-    rejecting ever smaller steps at the minimum). Otherwise, after `max_steps`, not converged.
+    parameters and the residuals, relative `rtol` plus absolute `atol`), or, after a rejected step, when
+    the last accepted point is stationary to within `gtol` (`_stationarity`: where float rounding keeps
+    the solver rejecting ever smaller steps at the minimum). Otherwise, after `max_steps`, not converged.
     """
     state = _init(solver, y0, problem)
     y = y0

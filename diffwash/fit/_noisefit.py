@@ -37,6 +37,7 @@ of freedom.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 from typing import Any
@@ -211,9 +212,11 @@ def fit_noise(model: FitModel, obs: Observations, starts: list[dict[str, np.ndar
     **Returns:** a `NoiseFit`.
     """
     G = obs.gain_sd.shape[0]
-    nuisance = {"log_gain": np.zeros((G, 3))}
-    if obs.black_sd is not None:
-        nuisance["log_black"] = np.zeros(3)
+    # The black band's nuisance is always there (without a band it touches no row and only its prior holds it
+    # at 0): one compiled program serves cards with and without a band.
+    nuisance = {"log_gain": np.zeros((G, 3)), "log_black": np.zeros(3)}
+    if obs.black_sd is None:
+        obs = dataclasses.replace(obs, black_sd=np.ones(3))
     starts = [{**s, **nuisance} for s in starts]
     pins = (np.zeros(6), np.zeros(6))
     dof = _degrees_of_freedom(obs)

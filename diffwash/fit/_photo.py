@@ -360,7 +360,8 @@ def _trimmed_lstsq(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray
     for _ in range(4):
         if use.sum() < A.shape[1]:
             break
-        coef, *_ = np.linalg.lstsq(A[use], y[use], rcond=None)
+        Au = A[use]  # normal equations: a handful of columns, well conditioned on [-1, 1] coordinates
+        coef = np.linalg.solve(Au.T @ Au + 1e-12 * np.eye(A.shape[1]), Au.T @ y[use])
         r = y - A @ coef
         mad = 1.4826 * np.median(np.abs(r[use] - np.median(r[use]))) + 1e-6
         use = np.abs(r) < 3 * mad

@@ -30,8 +30,9 @@ def add_arguments(p) -> None:
                    help="table: the plain fit (thickness = amount, sRGB residuals, no prior) instead of the model")
     p.add_argument("--thickness", choices=("power", "linear"),
                    help="table: thickness = amount**gamma (power, default) or amount")  # fmt: skip
-    p.add_argument("--loss", choices=("de2000", "cie94", "lab", "srgb"),
-                   help="residuals (default: cie94 for photos, de2000 for tables)")
+    p.add_argument("--loss", choices=("noise", "de2000", "cie94", "lab", "srgb"),
+                   help="residuals (default: noise for photos -- weighted by each patch's noise, with intervals -- "
+                        "de2000 for tables)")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"),
@@ -115,17 +116,21 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
 
     t0 = time.perf_counter()
     model = SWATCH_MODEL
-    if args.loss is not None:
-        model = FitModel(thickness="linear", loss=args.loss, prior=SWATCH_MODEL.prior)
+    if args.loss is not None and args.loss != SWATCH_MODEL.loss:
+        model = FitModel(thickness="linear", loss=args.loss)
     fit = fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps)
     p = fit.pigment
     print(f"{p.name}: {len(fit.patches)} patches from {len(args.photos)} photo{'s' if len(args.photos) > 1 else ''}")
     print(f"  {'coats':>5}  {'ground':6}  {'observed sRGB':>15}  {'fitted sRGB':>15}  {'CIEDE2000':>9}")
     for q in fit.patches:
         flag = "  (clipped: a bound)" if any(q.bound) else ""
+        if q.floor and any(q.floor):
+            flag += "  (" + ", ".join(c for c, f in zip(("red", "green", "blue"), q.floor) if f) + " at the noise floor)"
         print(f"  {q.coats:5g}  {q.ground:6}  {_srgb8(q.observed):>15}  {_srgb8(q.fitted):>15}  {q.delta_e:9.2f}{flag}")
     print(f"  K = {np.round(p.K, 4).tolist()}, S = {np.round(p.S, 4).tolist()} per coat")
-    status = "converged" if fit.converged else "NOT converged"
+    for line in fit.interval_lines():
+        print(f"  {line}")
+    status = "converged" if fit.converged else "did not converge"
     print(f"  mean CIEDE2000 {fit.mean_delta_e:.2f}; Levenberg-Marquardt {status} in {fit.iterations} steps")
     for c in fit.calibrations:
         for note in c.notes:
@@ -153,6 +158,11 @@ def _run_table(args, out: Path, report: Path | None) -> int:
     from ..fit import save_table_report
 
     t0 = time.perf_counter()
+    if args.loss == "noise":
+        from .._errors import DiffwashError
+
+        raise DiffwashError("a table has no pixels to estimate noise from: choose de2000, cie94, lab or srgb",
+                            field="--loss")  # fmt: skip
     base = PLAIN if args.plain else FitModel()
     model = FitModel(
         thickness=args.thickness or base.thickness,

@@ -42,7 +42,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .. import km
 from .._errors import DiffwashError
-from ..lut import srgb_encode
+from ..colorimetry import to_display as srgb_encode
 
 __all__ = [
     "mix_coefficients",

@@ -221,7 +221,7 @@ def paper_from_image(path: str | os.PathLike, *, field: str = "paper") -> np.nda
     `(rows, columns)` float64 heights in [0, 1].
     """
     try:
-        rgb, _ = read_image(path)
+        rgb, _ = read_image(path, colour=False, opaque=False)
     except DiffwashError as e:
         raise DiffwashError(e.problem, file=path, field=field) from None
     if min(rgb.shape[:2]) < MIN_TILE:

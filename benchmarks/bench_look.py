@@ -56,15 +56,14 @@ def jax_costs(rounds: int) -> dict:
 
     import make_watercolour as mw
 
-    from diffwash._barycentric import barycentrics
-    from diffwash._interpolate import interpolate
-    from diffwash._render import _kernel_args, _kernel_statics, _render_kernel, _visibility, surface, surface_thicknesses
+    from diffwash._render import _kernel_args, _kernel_statics, _render_kernel, surface, surface_thicknesses
+    from diffwash.ops import barycentrics, interpolate
 
     scene = diffwash.load_scene(SCENE)
     H, W = scene.height, scene.width
     p = scene.params
     mesh = scene.mesh
-    vis = _visibility(scene, None, False)
+    vis = diffwash.rasterize(scene)
     kargs, statics = _kernel_args(scene, p, vis), _kernel_statics(scene)
     depth, vp = mw.shadow_map(scene)
     screen = wl.screen_textures()
@@ -120,6 +119,15 @@ def jax_costs(rounds: int) -> dict:
 
 # --- OpenGL ----------------------------------------------------------------------------------------
 
+#: The exported shaders' vertex inputs and matrices (as in `diffwash.shader_sources`).
+_VERTEX_INPUTS = """\
+layout(location = 0) in vec3 position;
+layout(location = 1) in vec3 normal;
+uniform mat4 model;
+uniform mat3 normal_matrix;
+uniform mat4 view_projection;
+"""
+
 
 def _geometry_program(ctx, hatching: bool, shadow: str = "vertex"):
     """The look's geometry pass: the model's thicknesses, shadow (and hatching), mix and stroke into the G-buffer.
@@ -127,10 +135,9 @@ def _geometry_program(ctx, hatching: bool, shadow: str = "vertex"):
     `shadow="vertex"`: the shadow lookup runs in the vertex shader and is interpolated (as in the JAX
     kernel's default); `"pixel"`: per fragment.
     """
-    from diffwash import _glsl
-
     head = wl._gl.header("glsl330")
-    vert = head + f"#define LOOK_VERTEX_SHADOW {int(shadow == 'vertex')}\n" + _glsl._VERTEX_INPUTS + wl.glsl_shadow() + """\
+    model = diffwash.functions_source("glsl330", colour="km")  # the thickness model (the colour is the look's)
+    vert = head + f"#define LOOK_VERTEX_SHADOW {int(shadow == 'vertex')}\n" + _VERTEX_INPUTS + wl.glsl_shadow() + """\
 layout(location = 2) in float mix_in;
 layout(location = 3) in float stroke_in;
 out vec3 world_position;
@@ -152,7 +159,7 @@ void main() {
     gl_Position = view_projection * world;
 }
 """
-    frag = head + f"#define LOOK_HATCHING {int(hatching)}\n#define LOOK_VERTEX_SHADOW {int(shadow == 'vertex')}\n" + _glsl._MODEL + wl.glsl_surface() + """\
+    frag = head + f"#define LOOK_HATCHING {int(hatching)}\n#define LOOK_VERTEX_SHADOW {int(shadow == 'vertex')}\n" + model + wl.glsl_surface() + """\
 in float v_shadow;
 in vec3 world_position;
 in vec3 world_normal;
@@ -189,8 +196,6 @@ class LookFrame:
     def __init__(self, ctx, scene, look, *, hatching=False, size=None):
         import moderngl
 
-        from diffwash._glsl import uniform_values
-
         self.ctx, self.scene, self.look = ctx, scene, look
         W, H = size or (scene.width, scene.height)
         self.size = (W, H)
@@ -205,7 +210,7 @@ class LookFrame:
         self.vao = ctx.vertex_array(self.geometry, [(self.vbo, "3f 3f 1f 1f", "position", "normal", "mix_in", "stroke_in")], self.ibo)
         self.screen = wl.screen_textures()
         pigs = wl.Pigments.single(wl.pigment_look(p.wash, self.screen.paper), wl.pigment_look(p.unlit, self.screen.paper))
-        self.uniforms = {**uniform_values(scene, aspect=W / H), **wl.look_uniforms(look, pigs, height=H)}
+        self.uniforms = {**diffwash.uniform_values(scene, aspect=W / H), **wl.look_uniforms(look, pigs, height=H)}
         fov = np.radians(float(scene.camera.fov_y))
         fwd = np.asarray(scene.camera.target, np.float64) - np.asarray(scene.camera.eye, np.float64)
         self.uniforms.update(eye_forward=list(fwd / np.linalg.norm(fwd)), look_pixel_scale=2 * np.tan(fov / 2) / H)
@@ -378,7 +383,7 @@ def agreement() -> float:
     geo = mw.pixel_geometry(scene)
     strokes = wl.stroke_field(np.asarray(scene.mesh.vertices), np.asarray(scene.mesh.faces), np.asarray(scene.mesh.normals), direction="max")
     ref = mw.render_look(scene, wl.Look(), geo, wl.screen_textures(), mw.Extras(strokes=strokes), mw.shadow_map(scene))
-    ref8 = np.round(np.clip(diffwash.lut.srgb_encode(ref), 0, 1) * 255) / 255
+    ref8 = np.round(diffwash.colorimetry.to_display(ref) * 255) / 255
     mse = float(np.mean((gl - ref8) ** 2))
     return 10 * np.log10(1 / mse)
 

@@ -27,7 +27,7 @@ import diffwash  # noqa: E402
 from diffwash import look as wl  # noqa: E402
 from diffwash import pigments, shading  # noqa: E402
 from diffwash._io import write_png  # noqa: E402
-from diffwash.lut import srgb_encode  # noqa: E402
+from diffwash.colorimetry import to_display as srgb_encode  # noqa: E402
 
 SCENE = ROOT / "data" / "scenes" / "knot.json"
 SHADOW_SIZE = wl.SHADOW_MAP_SIZE
@@ -36,11 +36,10 @@ HATCH_SCALE = 190.0  # TAM level-0 texels per object unit: about one texel per p
 
 def pixel_geometry(scene) -> dict:
     """Per covered pixel: index, triangle, barycentrics, world position and normal, eye depth, the model's thicknesses."""
-    from diffwash._barycentric import barycentrics
-    from diffwash._interpolate import interpolate
-    from diffwash._render import _visibility, surface, surface_thicknesses
+    from diffwash._render import surface, surface_thicknesses
+    from diffwash.ops import barycentrics, interpolate
 
-    vis = _visibility(scene, None, False)
+    vis = diffwash.rasterize(scene)
     mesh, W, H = scene.mesh, scene.width, scene.height
     faces = jnp.asarray(mesh.faces, jnp.int32)
     vertices = jnp.asarray(mesh.vertices)
@@ -68,14 +67,12 @@ def pixel_geometry(scene) -> dict:
 
 def shadow_map(scene, size: int = SHADOW_SIZE) -> tuple[np.ndarray, np.ndarray]:
     """The light's depth map and matrix: the renderer's rasterizer on `look.light_clip`, then `look.light_depth`."""
-    from diffwash._raster import rasterize_arrays
+    from diffwash.ops import rasterize
 
     vertices, faces = np.asarray(scene.mesh.vertices), np.asarray(scene.mesh.faces)
     vp = np.asarray(wl.light_view_projection(vertices, scene.params.light))
-    lc = np.asarray(wl.light_clip(vertices, vp), np.float64)
-    # The rasterizer multiplies by a matrix: hand it (x w, y w, w) and a matrix that passes them through.
-    through = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0], [0, 0, 1, 0]], np.float64)
-    tri, _ = rasterize_arrays(lc[:, [0, 1, 3]], faces, through, 0.5, 10.0, size, size, False)
+    # light_clip's w grows with the distance from the light: the rasterizer's depth order is the light's.
+    tri = rasterize(wl.light_clip(vertices, vp), faces, (size, size)).tri_id
     return np.asarray(wl.light_depth(vertices, faces, vp, tri)), vp
 
 

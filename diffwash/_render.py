@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
-from . import shading
+from . import _watercolour, shading
 from ._antialias import Silhouettes, silhouettes
 from ._antialias import antialias as antialias_image
 from ._cache import LRU
@@ -313,6 +313,32 @@ def _render_kernel(vertices, faces, normals, camera, params, vis, both, *, width
 
 
 
+@functools.partial(jax.jit, static_argnames=("width", "height", "mode", "antialias"))
+def _look_kernel(vertices, faces, normals, camera, params, vis, both, wc, light_tri, *, width, height, mode, antialias):
+    """(H, W, 4): the watercolour look's linear RGB (`diffwash._watercolour.look_image`) and coverage."""
+    surf, clip = surface(vertices, faces, normals, camera, vis, both, width=width, height=height, mode=mode)
+    wash, unlit = surface_thicknesses(surf, params)
+    rgb = _watercolour.look_image(surf, clip, wash, unlit, vertices, faces, normals, camera, params, vis, wc, light_tri,
+                                  width=width, height=height)  # fmt: skip
+    cover = jnp.zeros((width * height, 1), rgb.dtype).at[vis.pixels].set(1, mode="drop", unique_indices=True)
+    image = jnp.concatenate([rgb, cover], axis=1)
+    if antialias:
+        image = antialias_image(image, clip, faces, vis.silhouettes, width, height)
+    return image.reshape(height, width, -1)
+
+
+def _render_look(scene, params, visibility, antialias):
+    """The scene's watercolour look: the light's depth pass (when it has shadows), then `_look_kernel`."""
+    vis = _visibility_for(scene, visibility, antialias)
+    wc = scene.watercolour
+    light_tri = None
+    if wc.shadow:
+        light = params.light if is_concrete(params.light) else scene.params.light  # the depth pass is a step
+        light_tri = _watercolour.shadow_triangles(scene.mesh.vertices, scene.mesh.faces, light)
+    args = _kernel_args(scene, params, vis)
+    return _look_kernel(*args, wc, light_tri, **_kernel_statics(scene), antialias=bool(antialias))
+
+
 def _int32(a):
     return a.astype(np.int32, copy=False) if isinstance(a, np.ndarray) else jnp.asarray(a, jnp.int32)
 
@@ -331,6 +357,9 @@ def _kernel_statics(scene) -> dict:
 def _render(scene, params, visibility, antialias, alpha):
     if params is None:
         params = scene.params
+    if getattr(scene, "watercolour", None) is not None:  # the look's edge blur needs the whole image: no strips
+        rgba = _render_look(scene, params, visibility, antialias)
+        return rgba if alpha else rgba[..., :-1]
     if visibility is None and scene.width * scene.height > TILE_PIXELS and is_concrete(_geometry(scene)):
         return jnp.concatenate([s for _, s in render_strips(scene, params, antialias=antialias, alpha=alpha)])
     vis = _visibility_for(scene, visibility, antialias)
@@ -531,8 +560,12 @@ def render_strips(
     `(first_row, strip)`: consecutive strips, together the image `render`
     (or `render_rgba`) draws. Each strip is rendered with its own visibility,
     from a window of the camera's image with a one-row margin where
-    antialiasing needs the neighbours.
+    antialiasing needs the neighbours. A scene with a watercolour look is one
+    strip (the look's edge darkening blurs across the whole image).
     """
+    if getattr(scene, "watercolour", None) is not None:
+        yield 0, _render(scene, params, None, antialias, alpha)
+        return
     rows = max(1, TILE_PIXELS // scene.width) if rows is None else int(rows)
     halo = 1 if antialias else 0
     window = min(scene.height, rows + 2 * halo)

@@ -34,6 +34,7 @@ from . import pigments as _pigments
 from ._camera import Camera
 from ._errors import DiffwashError
 from ._io import FLOAT32_MAX, check_float32, finite_number, read_json, write_json
+from ._watercolour import Watercolour, parse_watercolour
 from .shading import DEFAULT_CONSTANTS, DEFAULT_PAPER, Params
 
 __all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "referenced_files", "MAX_IMAGE_SIDE"]
@@ -44,7 +45,7 @@ SHADING_MODES = ("per-pixel", "per-vertex")
 BACKFACE_MODES = ("auto", "cull", "both")
 
 _TOP_KEYS = {
-    "mesh", "image", "camera", "light", "shading", "paper", "wash", "unlit", "backfaces", "meta",
+    "mesh", "image", "camera", "light", "shading", "paper", "wash", "unlit", "backfaces", "meta", "watercolour",
     *DEFAULT_CONSTANTS,
 }  # fmt: skip
 _CAMERA_KEYS = {"eye", "target", "up", "fov_y", "near", "far"}
@@ -76,6 +77,8 @@ class Scene(eqx.Module):
       shaded with the normal turned towards the eye) or `"auto"` (cull for closed
       meshes, both for open ones).
     - `path`: the scene file it came from, if any.
+    - `watercolour`: the watercolour look (`diffwash._watercolour.Watercolour`,
+      from the file's `"watercolour"` object), or None for the plain model.
     """
 
     mesh: Mesh
@@ -86,6 +89,7 @@ class Scene(eqx.Module):
     shading: str = eqx.field(static=True, default="per-pixel")
     backfaces: str = eqx.field(static=True, default="auto")
     path: str | None = eqx.field(static=True, default=None)
+    watercolour: Watercolour | None = None
 
     @property
     def cull_backfaces(self) -> bool:
@@ -336,6 +340,10 @@ def parse_scene(
         raise _fail(f"k_specular x k_wash = {wash_max:g} (the thickest wash) is out of float32 range", file, "k_wash")
 
     params = Params(wash=wash, unlit=unlit, paper=paper, light=direction, **consts)
+    look = parse_watercolour(
+        data.get("watercolour"), file=file, base=base, mesh=mesh, params=params,
+        pigment=lambda spec, key: _pigment(spec, key, file, base),
+    )  # fmt: skip
     return Scene(
         mesh=mesh,
         camera=camera,
@@ -345,6 +353,7 @@ def parse_scene(
         shading=mode,
         backfaces=backfaces,
         path=None if file is None else os.fspath(file),
+        watercolour=look,
     )
 
 

@@ -1,0 +1,331 @@
+"""A scene's `"watercolour"` object: the look's settings, validated, and the look drawn by the JAX renderer.
+
+```
+"watercolour": {
+  "paper":      {"image": "paper.png", "seed": 0, "relief": 2.0,
+                 "granulation": 0.6, "density": 0.25, "shading": 0.08},
+  "edges":      {"darkening": 3.0, "width": 3.0},
+  "unevenness": {"turbulence": 0.18, "dispersion": 0.08},
+  "strokes":    {"amplitude": 0.12, "direction": "max", "length": 0.25, "seed": 0},
+  "shadow":     {"strength": 0.7, "bias": 0.004},
+  "hatching":   {"amount": 0.5, "scale": 190},
+  "mix":        {"wash": {"pigment": "Cadmium Yellow"}, "unlit": {"pigment": "Hookers Green"},
+                 "map": [0.0, 0.1, ...] | "mix.npy" | {"axis": [0, 1, 0], "softness": 0.25}}
+}
+```
+
+Absent: the plain model. `{}`: every effect at its default but hatching and
+the mix (which need to be asked for). An effect set to `false` is off; an
+object takes defaults for the keys it leaves out. docs/scene-format.md and
+docs/watercolour.md describe each key.
+
+**References:** Curtis et al. 1997 (granulation, staining, edge darkening);
+Bousseau et al. 2006 (unevenness, paper); Lum and Ma 2001 (strokes along
+principal curvature); Praun et al. 2001 (tonal art maps); Montesdeoca et al.
+2017, MNPR (edge darkening from a blurred density).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array
+
+from . import look as wl
+from . import shading
+from ._errors import DiffwashError
+from ._interpolate import barycentrics, interpolate
+from ._io import check_float32, finite_number
+from ._rasterize import rasterize as rasterize_op
+
+__all__ = ["Watercolour", "parse_watercolour", "WATERCOLOUR_KEYS"]
+
+#: The keys of each effect's object, with their defaults (None: no default, the key is optional).
+WATERCOLOUR_KEYS: dict[str, dict[str, Any]] = {
+    "paper": {"image": None, "seed": 0, "relief": 2.0, "granulation": wl.DEFAULT_LOOK["granulation"],
+              "density": wl.DEFAULT_LOOK["density"], "shading": wl.DEFAULT_LOOK["paper_shading"]},
+    "edges": {"darkening": wl.DEFAULT_LOOK["edge_darkening"], "width": wl.DEFAULT_LOOK["edge_width"]},
+    "unevenness": {"turbulence": wl.DEFAULT_LOOK["turbulence"], "dispersion": wl.DEFAULT_LOOK["dispersion"]},
+    "strokes": {"amplitude": wl.DEFAULT_LOOK["strokes"], "direction": "max", "length": 0.25, "seed": 0},
+    "shadow": {"strength": wl.DEFAULT_LOOK["shadow"], "bias": wl.DEFAULT_LOOK["shadow_bias"]},
+    "hatching": {"amount": 0.5, "scale": 190.0},
+    "mix": {"wash": None, "unlit": None, "map": None},
+}  # fmt: skip
+#: Effects on unless the scene says otherwise (hatching and the mix are asked for).
+_ON_BY_DEFAULT = ("paper", "edges", "unevenness", "strokes", "shadow")
+#: Upper bounds of the keys that have one (fractions).
+_AT_MOST_ONE = {"paper.granulation", "shadow.strength", "hatching.amount"}
+
+
+class Watercolour(eqx.Module):
+    """A scene's watercolour look: its continuous parameters and what it precomputes.
+
+    **Fields:**
+
+    - `look`: the `diffwash.look.Look` (every leaf differentiable: replace it
+      with `eqx.tree_at(lambda s: s.watercolour.look, scene, look)`).
+    - `screen`: the screen-space tile `(Th, Tw, 6)` (`look.screen_textures`).
+    - `strokes`: the brush-stroke layer per vertex `(V,)`, or None.
+    - `mix`: the pigment mix per vertex `(V,)` in [0, 1] (differentiable), or None.
+    - `wash_b`, `unlit_b`: the pigments at mix 1, or None.
+    - `tam`: the tonal art map's levels, or None (no hatching).
+    - `pigments`: the `look.Pigments` (granularity, staining, density on this paper).
+    - `shadow`: whether the unlit glaze thickens in the object's own shadow.
+    - `hatch_scale`: texels of the map's finest level per object unit.
+    """
+
+    look: wl.Look
+    screen: Any
+    strokes: Any = None
+    mix: Any = None
+    wash_b: Any = None
+    unlit_b: Any = None
+    tam: Any = None
+    pigments: Any = eqx.field(static=True, default=None)
+    shadow: bool = eqx.field(static=True, default=True)
+    hatch_scale: float = eqx.field(static=True, default=190.0)
+
+
+def _fail(msg: str, file: Any, field: str) -> DiffwashError:
+    return DiffwashError(msg, file=file, field=field)
+
+
+def _effect(spec: dict, name: str, file: Any) -> dict | None:
+    """An effect's settings with defaults, or None when it is off."""
+    field = f"watercolour.{name}"
+    v = spec.get(name, {} if name in _ON_BY_DEFAULT else False)
+    if v is False:
+        return None
+    if v is True:
+        v = {}
+    if not isinstance(v, dict):
+        raise _fail(f"must be a JSON object or false, got {type(v).__name__}", file, field)
+    allowed = WATERCOLOUR_KEYS[name]
+    for k in v:
+        if k not in allowed:
+            raise _fail(f"unknown key; one of {', '.join(allowed)}", file, f"{field}.{k}")
+    return {**allowed, **v}
+
+
+def _amount(settings: dict, effect: str, key: str, file: Any, *, positive: bool = False) -> float:
+    field = f"watercolour.{effect}.{key}"
+    v = settings[key]
+    if not finite_number(v):
+        raise _fail(f"must be a finite number, got {v!r}", file, field)
+    v = float(check_float32(v, file=file, field=field))
+    if v < 0 or (positive and v == 0):
+        raise _fail(f"must be {'> 0' if positive else '>= 0'}, got {v!r}", file, field)
+    if f"{effect}.{key}" in _AT_MOST_ONE and v > 1:
+        raise _fail(f"must be within [0, 1], got {v!r}", file, field)
+    return v
+
+
+def _seed(settings: dict, effect: str, file: Any) -> int:
+    v = settings["seed"]
+    if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < 2**32:
+        raise _fail(f"must be a whole number in [0, 2^32), got {v!r}", file, f"watercolour.{effect}.seed")
+    return v
+
+
+def _paper(settings: dict | None, file: Any, base: Path) -> wl.ScreenTextures:
+    if settings is None:
+        return wl.screen_textures()
+    seed = _seed(settings, "paper", file)
+    relief = _amount(settings, "paper", "relief", file)
+    image = settings["image"]
+    if image is None:
+        return wl.screen_textures(seed=seed, relief=relief)
+    field = "watercolour.paper.image"
+    if not isinstance(image, str) or not image:
+        raise _fail("must be the path of a greyscale image file", file, field)
+    path = base / image
+    if not path.is_file():
+        raise _fail(f"no such image file: {path}", file, field)
+    try:
+        height = wl.paper_from_image(path, field=field)
+    except DiffwashError as e:
+        raise _fail(f"{path}: {e.problem}", file, field) from None
+    return wl.screen_textures(height, seed=seed, relief=relief)
+
+
+def _mix_map(spec: Any, vertices: np.ndarray, file: Any, base: Path) -> np.ndarray:
+    field = "watercolour.mix.map"
+    if spec is None:
+        raise _fail("missing key: a per-vertex list, a .npy file or {\"axis\": [x, y, z]}", file, field)
+    if isinstance(spec, dict):
+        for k in spec:
+            if k not in ("axis", "softness"):
+                raise _fail("unknown key; one of axis, softness", file, f"{field}.{k}")
+        axis = spec.get("axis")
+        if not isinstance(axis, list) or len(axis) != 3 or not all(finite_number(a) for a in axis) or not any(axis):
+            raise _fail(f"must be a non-zero list of 3 finite numbers, got {axis!r}", file, f"{field}.axis")
+        soft = spec.get("softness", 0.25)
+        if not finite_number(soft) or not 0 < soft <= 10:
+            raise _fail(f"must be a number in (0, 10], got {soft!r}", file, f"{field}.softness")
+        return wl.mix_along_axis(vertices, axis, softness=float(soft))
+    if isinstance(spec, str):
+        path = base / spec
+        if not path.is_file():
+            raise _fail(f"no such file: {path}", file, field)
+        try:
+            spec = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as e:
+            raise _fail(f"{path}: not a NumPy .npy array ({e})", file, field) from None
+    elif isinstance(spec, list):
+        if not all(finite_number(x) for x in spec):
+            raise _fail("must be a list of finite numbers, one per vertex", file, field)
+    else:
+        raise _fail(f"must be a list, a .npy file or an object, got {type(spec).__name__}", file, field)
+    return wl.check_mix_map(spec, len(vertices), file=file, field=field)
+
+
+def parse_watercolour(
+    spec: Any, *, file: Any, base: Path, mesh: Any, params: shading.Params, pigment: Callable[[Any, str], Any]
+) -> Watercolour | None:
+    """The `Watercolour` of a scene's `"watercolour"` value (None: absent or `false`).
+
+    **Arguments:**
+
+    - `spec`: the JSON value; `file`: the scene file (for errors); `base`: the
+      folder relative paths start from.
+    - `mesh`: the scene's `Mesh`; `params`: its `Params`.
+    - `pigment(spec, key)`: the scene's pigment reader (names, files, K and S).
+
+    **Returns:**
+
+    A `Watercolour`, or None. Bad values raise a one-line `DiffwashError`
+    naming the file and the key (`watercolour.edges.width`, ...).
+    """
+    if spec is None or spec is False:
+        return None
+    if not isinstance(spec, dict):
+        raise _fail(f"must be a JSON object, got {type(spec).__name__}", file, "watercolour")
+    for k in spec:
+        if k not in WATERCOLOUR_KEYS:
+            raise _fail(f"unknown key; one of {', '.join(WATERCOLOUR_KEYS)}", file, f"watercolour.{k}")
+    eff = {name: _effect(spec, name, file) for name in WATERCOLOUR_KEYS}
+    values = dict.fromkeys(wl.DEFAULT_LOOK, 0.0)
+    values["shadow_bias"] = wl.DEFAULT_LOOK["shadow_bias"]
+    names = {"paper": {"granulation": "granulation", "density": "density", "shading": "paper_shading"},
+             "edges": {"darkening": "edge_darkening", "width": "edge_width"},
+             "unevenness": {"turbulence": "turbulence", "dispersion": "dispersion"},
+             "strokes": {"amplitude": "strokes"}, "shadow": {"strength": "shadow", "bias": "shadow_bias"},
+             "hatching": {"amount": "hatching"}}  # fmt: skip
+    for effect, keys in names.items():
+        if eff[effect] is not None:
+            for key, leaf in keys.items():
+                values[leaf] = _amount(eff[effect], effect, key, file)
+    screen = _paper(eff["paper"], file, base)
+    vertices = np.asarray(mesh.vertices, np.float64)
+    strokes = None
+    if eff["strokes"] is not None:
+        s = eff["strokes"]
+        if s["direction"] not in ("min", "max"):
+            raise _fail(f"must be \"min\" or \"max\", got {s['direction']!r}", file, "watercolour.strokes.direction")
+        length = _amount(s, "strokes", "length", file, positive=True)
+        strokes = wl.stroke_field(vertices, np.asarray(mesh.faces), np.asarray(mesh.normals), direction=s["direction"],
+                                  length=length, seed=_seed(s, "strokes", file))  # fmt: skip
+    tam, scale = None, WATERCOLOUR_KEYS["hatching"]["scale"]
+    if eff["hatching"] is not None:
+        scale = _amount(eff["hatching"], "hatching", "scale", file, positive=True)
+        tam = [np.asarray(level, np.float32) for level in wl.tonal_art_map()]
+    mix = wash_b = unlit_b = None
+    if eff["mix"] is not None:
+        m = eff["mix"]
+        wash_b = params.wash if m["wash"] is None else pigment(m["wash"], "watercolour.mix.wash")
+        unlit_b = params.unlit if m["unlit"] is None else pigment(m["unlit"], "watercolour.mix.unlit")
+        mix = _mix_map(m["map"], vertices, file, base)
+    looks = [wl.pigment_look(q, screen.paper) for q in (params.wash, wash_b or params.wash, params.unlit, unlit_b or params.unlit)]
+    return Watercolour(
+        look=wl.Look(**{k: np.float64(v) for k, v in values.items()}),
+        screen=np.asarray(screen.channels, np.float32),
+        strokes=strokes,
+        mix=mix,
+        wash_b=wash_b,
+        unlit_b=unlit_b,
+        tam=tam,
+        pigments=wl.Pigments(*looks),
+        shadow=eff["shadow"] is not None,
+        hatch_scale=float(scale),
+    )
+
+
+# --- the look in the renderer ------------------------------------------------------------------------
+
+
+def _tile(screen: Array, height: int, width: int, dtype) -> Array:
+    rows = np.arange(height) % screen.shape[0]
+    cols = np.arange(width) % screen.shape[1]
+    return jnp.asarray(screen, dtype)[rows][:, cols]
+
+
+def _points(surf: Any, clip, vertices, faces, normals, vis, *, width, height) -> tuple[Array, Array]:
+    """World position and unit normal (turned towards the eye on drawn back faces) at the covered pixels."""
+    bary = _bary(surf, clip, faces, vis, width, height)
+    P = interpolate(vertices, faces, vis.pixel_tri, bary)
+    if surf.N is not None:
+        return P, surf.N
+    N = shading.safe_normalize(interpolate(normals, faces, vis.pixel_tri, bary))
+    return P, jnp.where(surf.flip[:, None], -N, N)
+
+
+def look_image(
+    surf: Any, clip: Array, wash: Array, unlit: Array, vertices, faces, normals, camera, params, vis, wc: Watercolour,
+    light_tri: Array | None, *, width: int, height: int,
+) -> Array:  # fmt: skip
+    r"""The look on the model's thicknesses at the covered pixels: `(H * W, 3)` linear RGB, the whole image.
+
+    Surface terms (shadow, hatching) at the pixels, the G-buffer, image terms
+    (edges, strokes, paper, unevenness), the glaze (mixed pigments where the
+    scene has a mix map) and the paper's shading, as `diffwash.look.compose`
+    and docs/watercolour.md describe. Differentiable in every leaf of
+    `wc.look`, `wc.mix`, the pigments, the constants and the geometry.
+    `light_tri`: the shadow map's triangles (`ops.rasterize` of
+    `look.light_clip`), or None without shadows.
+    """
+    look = wc.look
+    dtype = wash.dtype
+    sh = hatch = None
+    if wc.shadow or wc.tam is not None:
+        P, N = _points(surf, clip, vertices, faces, normals, vis, width=width, height=height)
+    if wc.shadow:
+        vp = wl.light_view_projection(vertices, params.light)
+        depth = wl.light_depth(vertices, faces, vp, light_tri)
+        offset = 1.5 * 2 / (jnp.linalg.norm(vp[0, :3]) * light_tri.shape[0])  # look.normal_offset, traced
+        sh = wl.shadow(depth, vp, P, look.shadow_bias, normals=N, normal_offset=offset)
+    if wc.tam is not None:
+        eye = jnp.asarray(camera.eye, dtype)
+        fwd = shading.safe_normalize(jnp.asarray(camera.target, dtype) - eye)
+        pixel = jnp.sum((P - eye) * fwd, axis=-1) * (2 * jnp.tan(jnp.deg2rad(camera.fov_y) / 2) / height)
+        hatch = wl.hatch_samples(wc.tam, P, N, pixel, wc.hatch_scale)
+    w, u = wl.surface_terms(wash, unlit, look, unlit_max=params.k_unlit, shadow=sh, hatch=hatch)
+    zero = jnp.zeros_like(w)
+    bary = None if wc.mix is None and wc.strokes is None else _bary(surf, clip, faces, vis, width, height)
+    m = zero if wc.mix is None else interpolate(jnp.asarray(wc.mix, dtype), faces, vis.pixel_tri, bary)
+    b = zero if wc.strokes is None else interpolate(jnp.asarray(wc.strokes, dtype), faces, vis.pixel_tri, bary)
+    n = width * height
+    g = jnp.zeros((n, 4), dtype).at[vis.pixels].set(jnp.stack([w, u, m, b], 1), mode="drop", unique_indices=True)
+    if wc.mix is None:
+        glaze = lambda a, c, _m: shading.glaze(params, a, c)  # noqa: E731
+    else:
+        glaze = lambda a, c, mm: wl.glaze_mix(params, wc.wash_b, wc.unlit_b, a, c, mm)  # noqa: E731
+    rgb = wl.compose(g.reshape(height, width, 4), _tile(wc.screen, height, width, dtype), look, wc.pigments, glaze)
+    return rgb.reshape(n, 3)
+
+
+def _bary(surf, clip, faces, vis, width, height):
+    if surf.bary is not None:
+        return surf.bary
+    return barycentrics(clip, faces, vis.pixel_tri, vis.pixels, width, height)[0]
+
+
+def shadow_triangles(vertices: Any, faces: Any, light: Any, size: int = wl.SHADOW_MAP_SIZE) -> Array:
+    """The triangle the light sees at each shadow-map texel, `(size, size)` (the depth pass; not differentiable)."""
+    v = jnp.asarray(vertices, jnp.float32)
+    vp = wl.light_view_projection(v, jnp.asarray(light, jnp.float32))
+    return rasterize_op(wl.light_clip(v, vp), faces, (size, size)).tri_id
+

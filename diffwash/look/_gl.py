@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import moderngl
 import numpy as np
 
 __all__ = ["float_literal", "vec_literal", "FULLSCREEN_VERTEX", "HEADERS", "header"]
@@ -72,8 +73,6 @@ def texture(ctx, array, *, linear: bool = False, repeat: bool = False, mipmaps=N
     `(h/2^k, w/2^k, c)`), written level by level (a tonal art map's own levels,
     not filtered ones); the texture then samples `LINEAR_MIPMAP_LINEAR`.
     """
-    import moderngl
-
     a = np.asarray(array)
     if a.ndim == 2:
         a = a[..., None]
@@ -95,8 +94,6 @@ def texture(ctx, array, *, linear: bool = False, repeat: bool = False, mipmaps=N
 
 def texture3d(ctx, array):
     """A linearly filtered, clamped moderngl 3D texture from a `(d, h, w, c)` float array (slice 0 first)."""
-    import moderngl
-
     a = np.ascontiguousarray(np.asarray(array, np.float32))
     tex = ctx.texture3d((a.shape[2], a.shape[1], a.shape[0]), a.shape[3], a.tobytes(), dtype="f4")
     tex.repeat_x = tex.repeat_y = tex.repeat_z = False

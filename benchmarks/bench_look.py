@@ -39,6 +39,7 @@ from diffwash import look as wl  # noqa: E402
 from diffwash import shading  # noqa: E402
 
 SCENE = ROOT / "data" / "scenes" / "knot.json"
+SHOWCASE = ROOT / "data" / "scenes" / "watercolour.json"
 LUT_SIZE = (64, 64, 16)
 LUT_RANGE = 3.0  # the 3D LUT covers 3x the model's largest thicknesses (edges, granulation, noise thicken)
 
@@ -115,6 +116,36 @@ def jax_costs(rounds: int) -> dict:
     for k in list(times)[1:4]:
         med[f"ratio: {k} / plain (median of per-round ratios)"] = statistics.median([a / b for a, b in zip(times[k], plain)])
     return med
+
+
+def _psnr8(a: np.ndarray, b: np.ndarray) -> float:
+    """PSNR of two linear images as 8-bit display sRGB."""
+    a8, b8 = (np.round(diffwash.colorimetry.to_display(np.asarray(x)) * 255) / 255 for x in (a, b))
+    return float(10 * np.log10(1 / np.mean((a8 - b8) ** 2)))
+
+
+def scene_costs(rounds: int) -> dict:
+    """`diffwash.render` of data/scenes/watercolour.json (every effect on) against the same scene without its look.
+
+    Warm (compiled, visibility and shadow-map pass cached), alternating rounds, medians; and the PSNR of the two
+    images (how visible the look is).
+    """
+    import equinox as eqx
+
+    look = diffwash.load_scene(SHOWCASE)
+    plain = eqx.tree_at(lambda s: s.watercolour, look, None, is_leaf=lambda x: x is None)
+    fns = {"plain (no watercolour object)": lambda: diffwash.render(plain), "every look effect on": lambda: diffwash.render(look)}
+    images = {k: np.asarray(f()) for k, f in fns.items()}
+    times = {k: [] for k in fns}
+    for _ in range(rounds):
+        for k, f in fns.items():
+            times[k].append(_median_time(f, 3))
+    out = {f"{k} (ms)": 1e3 * statistics.median(v) for k, v in times.items()}
+    out["ratio look / plain (median of per-round ratios)"] = statistics.median(
+        [a / b for a, b in zip(times["every look effect on"], times["plain (no watercolour object)"])]
+    )
+    out["PSNR look vs plain (dB, 8-bit sRGB)"] = _psnr8(*images.values())
+    return out
 
 
 # --- OpenGL ----------------------------------------------------------------------------------------
@@ -411,8 +442,13 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--gl-size", type=int, default=1024)
     ap.add_argument("--seconds", type=float, default=4.0)
-    ap.add_argument("--skip", nargs="*", default=[], choices=["jax", "gl", "agreement", "lut"])
+    ap.add_argument("--skip", nargs="*", default=[], choices=["scene", "jax", "gl", "agreement", "lut"])
     args = ap.parse_args(argv)
+    if "scene" not in args.skip:
+        print("| diffwash.render, data/scenes/watercolour.json, 512^2, 100k triangles, CPU float32 | value |\n| --- | ---: |")
+        for k, v in scene_costs(args.rounds).items():
+            print(f"| {k} | {v:.2f} |")
+        print()
     if "jax" not in args.skip:
         print("| JAX, 512^2, 100k triangles, CPU float32 | ms |\n| --- | ---: |")
         for k, v in jax_costs(args.rounds).items():

@@ -73,6 +73,8 @@ __all__ = [
 SHADING_MODES = ("per-pixel", "per-vertex")
 
 _cache = LRU(4)
+#: The shadow maps' triangles (the light's depth pass) of concrete meshes and lights.
+_light_cache = LRU(4)
 
 
 class Visibility(eqx.Module):
@@ -113,8 +115,9 @@ class Visibility(eqx.Module):
 
 
 def clear_visibility_cache() -> None:
-    """Forget the visibilities `render` computed for concrete scenes."""
+    """Forget the visibilities (and the look's shadow-map passes) `render` computed for concrete scenes."""
     _cache.clear()
+    _light_cache.clear()
 
 
 @functools.partial(jax.jit, static_argnames=("aspect",))
@@ -334,7 +337,9 @@ def _render_look(scene, params, visibility, antialias):
     light_tri = None
     if wc.shadow:
         light = params.light if is_concrete(params.light) else scene.params.light  # the depth pass is a step
-        light_tri = _watercolour.shadow_triangles(scene.mesh.vertices, scene.mesh.faces, light)
+        geometry = (scene.mesh.vertices, scene.mesh.faces, light)
+        compute = lambda: _watercolour.shadow_triangles(*geometry)  # noqa: E731
+        light_tri = _light_cache.get(geometry, compute) if is_concrete(geometry) else compute()
     args = _kernel_args(scene, params, vis)
     return _look_kernel(*args, wc, light_tri, **_kernel_statics(scene), antialias=bool(antialias))
 

@@ -307,14 +307,24 @@ def look_image(
     bary = None if wc.mix is None and wc.strokes is None else _bary(surf, clip, faces, vis, width, height)
     m = zero if wc.mix is None else interpolate(jnp.asarray(wc.mix, dtype), faces, vis.pixel_tri, bary)
     b = zero if wc.strokes is None else interpolate(jnp.asarray(wc.strokes, dtype), faces, vis.pixel_tri, bary)
-    n = width * height
-    g = jnp.zeros((n, 4), dtype).at[vis.pixels].set(jnp.stack([w, u, m, b], 1), mode="drop", unique_indices=True)
+    # The edge blur is the one operator over the whole image; the rest runs on the covered pixels only
+    # (bare paper is thickness 0: its glaze is the paper), as image_terms(..., mean=) allows.
+    n, pixels = width * height, vis.pixels
+    t = jnp.zeros((n, 2), dtype).at[pixels].set(jnp.stack([w, u], 1), mode="drop", unique_indices=True)
+    mean = wl.local_mean(t.reshape(height, width, 2), look.edge_width, wl.edge_downsample(height))
+    mean = mean.reshape(n, 2).at[pixels].get(mode="fill", fill_value=0)
+    screen = jnp.asarray(wc.screen, dtype)
+    rows, cols = screen.shape[:2]
+    p = jnp.minimum(pixels, n - 1)
+    at = screen[(p // width) % rows, (p % width) % cols]  # the screen tile at the covered pixels
+    thick = wl.image_terms(jnp.stack([w, u, m, b], 1), at, look, wc.pigments, mean=mean)
     if wc.mix is None:
-        glaze = lambda a, c, _m: shading.glaze(params, a, c)  # noqa: E731
+        rgb = shading.glaze(params, thick[:, 0], thick[:, 1])
     else:
-        glaze = lambda a, c, mm: wl.glaze_mix(params, wc.wash_b, wc.unlit_b, a, c, mm)  # noqa: E731
-    rgb = wl.compose(g.reshape(height, width, 4), _tile(wc.screen, height, width, dtype), look, wc.pigments, glaze)
-    return rgb.reshape(n, 3)
+        rgb = wl.glaze_mix(params, wc.wash_b, wc.unlit_b, thick[:, 0], thick[:, 1], m)
+    image = jnp.broadcast_to(jnp.asarray(params.paper, dtype), (n, 3)).at[pixels].set(rgb, mode="drop", unique_indices=True)
+    shade = _tile(screen[..., 1:2], height, width, dtype)[..., 0]
+    return wl.paper_shading(image.reshape(height, width, 3), shade, look.paper_shading).reshape(n, 3)
 
 
 def _bary(surf, clip, faces, vis, width, height):

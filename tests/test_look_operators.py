@@ -326,3 +326,19 @@ def test_normal_offset_is_texels_in_world_units():
         vp = np.asarray(_shadow.light_view_projection(v, d))
         r = 1 / np.linalg.norm(vp[0, :3])  # the frustum's half-size
         np.testing.assert_allclose(_shadow.normal_offset(vp, 512, 1.5), 1.5 * 2 * r / 512)
+
+
+def test_sample_tam_reads_the_two_levels_around_the_lod():
+    """The packed two-level lookup equals blending `sample_level` of every level (the textbook trilinear)."""
+    rng = np.random.default_rng(3)
+    tam = [rng.uniform(size=(n, n, 8)) for n in (32, 16, 8, 4)]
+    uv = rng.uniform(-2, 2, size=(500, 2))
+    lod = rng.uniform(-0.5, 4.0, size=500)
+    levels = np.stack([np.asarray(_hatching.sample_level(t, uv)) for t in tam])
+    c = np.clip(lod, 0, 3)
+    l0 = np.floor(c).astype(int)
+    l1 = np.minimum(l0 + 1, 3)
+    f = (c - l0)[:, None]
+    i = np.arange(500)
+    ref = levels[l0, i] * (1 - f) + levels[l1, i] * f
+    np.testing.assert_allclose(np.asarray(_hatching.sample_tam(tam, uv, lod)), ref, rtol=1e-12, atol=1e-12)

@@ -178,18 +178,41 @@ def sample_level(image: Float[ArrayLike, "n n C"], uv: Float[ArrayLike, "*b 2"])
     return top * (1 - fy) + bottom * fy
 
 
+def _sample_packed(flat: Array, offsets: Array, sizes: Array, uv: Array, level: Array) -> Array:
+    """Bilinear sample with wrap-around of the square level `level` (per point) of levels packed in `flat`."""
+    n = sizes[level]
+    t = uv * n[..., None].astype(uv.dtype) - 0.5
+    i0 = jnp.floor(t)
+    f = t - i0
+    i0 = i0.astype(jnp.int32)
+    x0, y0 = jnp.mod(i0[..., 0], n), jnp.mod(i0[..., 1], n)
+    x1, y1 = jnp.mod(x0 + 1, n), jnp.mod(y0 + 1, n)
+    base = offsets[level]
+    fx, fy = f[..., 0:1], f[..., 1:2]
+    top = flat[base + y0 * n + x0] * (1 - fx) + flat[base + y0 * n + x1] * fx
+    bottom = flat[base + y1 * n + x0] * (1 - fx) + flat[base + y1 * n + x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
 def sample_tam(tam: list, uv: Float[ArrayLike, "*b 2"], lod: Float[ArrayLike, "*b"]) -> Float[Array, "*b C"]:
-    """Trilinear sample of the map at `uv` and mip level `lod` (as `textureLod` with LINEAR_MIPMAP_LINEAR)."""
+    """Trilinear sample of the map at `uv` and mip level `lod` (as `textureLod` with LINEAR_MIPMAP_LINEAR).
+
+    Only the two levels around `lod` are read (the levels are packed into one
+    table and indexed per point): 8 texels per point, whatever the level count.
+    """
     lod = jnp.asarray(lod)
+    uv = jnp.asarray(uv)
     top = len(tam) - 1
+    sizes_np = np.array([np.shape(level)[0] for level in tam], np.int32)
+    offsets_np = np.concatenate([[0], np.cumsum(sizes_np.astype(np.int64) ** 2)[:-1]]).astype(np.int32)
+    flat = jnp.concatenate([jnp.reshape(jnp.asarray(level), (-1, jnp.shape(level)[-1])) for level in tam], axis=0)
+    sizes, offsets = jnp.asarray(sizes_np), jnp.asarray(offsets_np)
     l0 = jnp.clip(jnp.floor(lod), 0, top)
     f = (jnp.clip(lod, 0, top) - l0)[..., None]
-    samples = [sample_level(level, uv) for level in tam]
-    stack = jnp.stack(samples, axis=0)  # (L, *b, C)
     i0 = l0.astype(jnp.int32)
     i1 = jnp.minimum(i0 + 1, top)
-    a = jnp.take_along_axis(stack, i0[None, ..., None], axis=0)[0]
-    b = jnp.take_along_axis(stack, i1[None, ..., None], axis=0)[0]
+    a = _sample_packed(flat, offsets, sizes, uv, i0)
+    b = _sample_packed(flat, offsets, sizes, uv, i1)
     return a * (1 - f) + b * f
 
 

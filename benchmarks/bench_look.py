@@ -150,229 +150,22 @@ def scene_costs(rounds: int) -> dict:
 
 # --- OpenGL ----------------------------------------------------------------------------------------
 
-#: The exported shaders' vertex inputs and matrices (as in `diffwash.shader_sources`).
-_VERTEX_INPUTS = """\
-layout(location = 0) in vec3 position;
-layout(location = 1) in vec3 normal;
-uniform mat4 model;
-uniform mat3 normal_matrix;
-uniform mat4 view_projection;
-"""
-
-
-def _geometry_program(ctx, hatching: bool, shadow: str = "vertex"):
-    """The look's geometry pass: the model's thicknesses, shadow (and hatching), mix and stroke into the G-buffer.
-
-    `shadow="vertex"`: the shadow lookup runs in the vertex shader and is interpolated (as in the JAX
-    kernel's default); `"pixel"`: per fragment.
-    """
-    head = wl._gl.header("glsl330")
-    model = diffwash.functions_source("glsl330", colour="km")  # the thickness model (the colour is the look's)
-    vert = head + f"#define LOOK_VERTEX_SHADOW {int(shadow == 'vertex')}\n" + _VERTEX_INPUTS + wl.glsl_shadow() + """\
-layout(location = 2) in float mix_in;
-layout(location = 3) in float stroke_in;
-out vec3 world_position;
-out vec3 world_normal;
-out float v_mix;
-out float v_stroke;
-out float v_shadow;
-void main() {
-    vec4 world = model * vec4(position, 1.0);
-    world_position = world.xyz;
-    world_normal = normal_matrix * normal;
-#if LOOK_VERTEX_SHADOW
-    v_shadow = look_shadow_factor(world.xyz, normalize(world_normal));
-#else
-    v_shadow = 0.0;
-#endif
-    v_mix = mix_in;
-    v_stroke = stroke_in;
-    gl_Position = view_projection * world;
-}
-"""
-    frag = head + f"#define LOOK_HATCHING {int(hatching)}\n#define LOOK_VERTEX_SHADOW {int(shadow == 'vertex')}\n" + model + wl.glsl_surface() + """\
-in float v_shadow;
-in vec3 world_position;
-in vec3 world_normal;
-in float v_mix;
-in float v_stroke;
-uniform bool two_sided;
-uniform vec3 eye_forward;
-uniform float look_pixel_scale;   // 2 tan(fov_y / 2) / height: a pixel's size per unit of eye depth
-layout(location = 0) out vec4 gbuffer;
-void main() {
-    vec3 N = safe_normalize(world_normal);
-    if (two_sided && !gl_FrontFacing) N = -N;
-    vec3 L = safe_normalize(light_direction);
-    vec3 V = safe_normalize(eye - world_position);
-    vec2 t = watercolour_thickness(N, L, V);
-    vec4 h0 = vec4(0.0), h1 = vec4(0.0);
-#if LOOK_HATCHING
-    look_hatch_samples(world_position, N, dot(world_position - eye, eye_forward) * look_pixel_scale, h0, h1);
-#endif
-#if LOOK_VERTEX_SHADOW
-    float shadow = v_shadow;
-#else
-    float shadow = look_shadow_factor(world_position, N);
-#endif
-    gbuffer = vec4(look_surface(t, k_unlit, shadow, h0, h1), v_mix, v_stroke);
-}
-"""
-    return ctx.program(vertex_shader=vert, fragment_shader=frag)
-
-
-class LookFrame:
-    """The look's passes in OpenGL for one scene (the stage-2 preview in miniature)."""
-
-    def __init__(self, ctx, scene, look, *, hatching=False, size=None):
-        import moderngl
-
-        self.ctx, self.scene, self.look = ctx, scene, look
-        W, H = size or (scene.width, scene.height)
-        self.size = (W, H)
-        p = scene.params
-        mesh = scene.mesh
-        v = np.asarray(mesh.vertices, np.float32)
-        self.strokes = wl.stroke_field(np.asarray(mesh.vertices), np.asarray(mesh.faces), np.asarray(mesh.normals), direction="max")
-        attrs = np.concatenate([v, np.asarray(mesh.normals, np.float32), np.zeros((len(v), 1), np.float32), self.strokes[:, None]], 1)
-        self.vbo = ctx.buffer(np.ascontiguousarray(attrs).tobytes())
-        self.ibo = ctx.buffer(np.asarray(mesh.faces, np.uint32).tobytes())
-        self.geometry = _geometry_program(ctx, hatching)
-        self.vao = ctx.vertex_array(self.geometry, [(self.vbo, "3f 3f 1f 1f", "position", "normal", "mix_in", "stroke_in")], self.ibo)
-        self.screen = wl.screen_textures()
-        pigs = wl.Pigments.single(wl.pigment_look(p.wash, self.screen.paper), wl.pigment_look(p.unlit, self.screen.paper))
-        self.uniforms = {**diffwash.uniform_values(scene, aspect=W / H), **wl.look_uniforms(look, pigs, height=H)}
-        fov = np.radians(float(scene.camera.fov_y))
-        fwd = np.asarray(scene.camera.target, np.float64) - np.asarray(scene.camera.eye, np.float64)
-        self.uniforms.update(eye_forward=list(fwd / np.linalg.norm(fwd)), look_pixel_scale=2 * np.tan(fov / 2) / H)
-        # The light's depth map: rendered once (the light and the mesh do not move).
-        self.light_vp = np.asarray(wl.light_view_projection(np.asarray(mesh.vertices), p.light), np.float32)
-        self.uniforms["look_light_view_projection"] = self.light_vp
-        self.uniforms["look_shadow_normal_offset"] = wl.normal_offset(self.light_vp)
-        self.shadow_map = self._depth_pass(wl.SHADOW_MAP_SIZE)
-        wash_max, unlit_max = LUT_RANGE * float(p.wash_max), LUT_RANGE * float(p.unlit_max)
-        table = wl.bake_mix_lut(lambda q, w, u, m: wl.glaze_mix(q, q.wash, q.unlit, w, u, m), p, LUT_SIZE, wash_max=wash_max, unlit_max=unlit_max)
-        self.uniforms.update(lut_wash_max=wash_max, lut_unlit_max=unlit_max, look_flip_rows=1, look_rows=H)
-        self.lut = wl._gl.texture3d(ctx, table)
-        s0, s1 = self.screen.rgba()
-        self.s0, self.s1 = wl._gl.texture(ctx, s0), wl._gl.texture(ctx, s1)
-        self.tam = None
-        if hatching:
-            tam = wl.tonal_art_map()
-            self.tam = [wl._gl.texture(ctx, tam[0][..., 4 * i : 4 * i + 4], repeat=True, mipmaps=[lv[..., 4 * i : 4 * i + 4] for lv in tam[1:]]) for i in range(2)]
-            self.uniforms["look_hatch_scale"] = 190.0 * H / 512
-        self.gbuf = ctx.texture((W, H), 4, dtype="f4")
-        self.gbuf.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.gfbo = ctx.framebuffer([self.gbuf], ctx.depth_renderbuffer((W, H)))
-        f = wl.edge_downsample(H)
-        self.low_size = (-(-W // f), -(-H // f))
-        self.low = [ctx.texture(self.low_size, 4, dtype="f4") for _ in range(2)]
-        for t in self.low:
-            t.filter = (moderngl.LINEAR, moderngl.LINEAR)
-            t.repeat_x = t.repeat_y = False
-        self.lfbo = [ctx.framebuffer([t]) for t in self.low]
-        head = wl._gl.header("glsl330")
-        full_vs = head + wl._gl.FULLSCREEN_VERTEX
-        passes = wl.glsl_edge_passes(f)
-        self.edge_programs = [ctx.program(vertex_shader=full_vs, fragment_shader=head + passes[k]) for k in ("downsample", "blur_rows", "blur_columns")]
-        self.final = ctx.program(vertex_shader=full_vs, fragment_shader=head + "#define LOOK_OUTPUT_SRGB 1\n" + wl.glsl_final_pass(height=H))
-        self.out = ctx.texture((W, H), 4, dtype="f1")
-        self.ofbo = ctx.framebuffer([self.out])
-        self.fullscreen = [ctx.vertex_array(prog, []) for prog in [*self.edge_programs, self.final]]
-        for prog in [self.geometry, *self.edge_programs, self.final]:
-            _set_uniforms(prog, self.uniforms)
-
-    def _depth_pass(self, size):
-        import moderngl
-
-        vert, frag = wl.glsl_depth_pass()
-        head = wl._gl.header("glsl330")
-        prog = self.ctx.program(vertex_shader=head + vert, fragment_shader=head + frag)
-        _set_uniforms(prog, {"look_light_view_projection": self.light_vp})
-        depth = self.ctx.texture((size, size), 1, dtype="f4")
-        depth.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        fbo = self.ctx.framebuffer([depth], self.ctx.depth_renderbuffer((size, size)))
-        vao = self.ctx.vertex_array(prog, [(self.vbo, "3f 20x", "position")], self.ibo)
-        fbo.use()
-        self.ctx.viewport = (0, 0, size, size)
-        fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
-        self.ctx.enable(moderngl.DEPTH_TEST)
-        self.ctx.disable(moderngl.CULL_FACE)
-        vao.render(moderngl.TRIANGLES)
-        return depth
-
-    def draw(self):
-        import moderngl
-
-        ctx = self.ctx
-        W, H = self.size
-        units = {"look_shadow_map": self.shadow_map, "look_mix_lut": self.lut, "look_screen0": self.s0, "look_screen1": self.s1}
-        if self.tam:
-            units.update(look_tam0=self.tam[0], look_tam1=self.tam[1])
-        self.gfbo.use()
-        ctx.viewport = (0, 0, W, H)
-        self.gfbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.enable(moderngl.CULL_FACE) if self.scene.cull_backfaces else ctx.disable(moderngl.CULL_FACE)
-        _bind(self.geometry, units)
-        self.vao.render(moderngl.TRIANGLES)
-        ctx.disable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        ctx.viewport = (0, 0, *self.low_size)
-        sources = [self.gbuf, self.low[0], self.low[1]]
-        targets = [self.lfbo[0], self.lfbo[1], self.lfbo[0]]
-        for vao, prog, src, dst in zip(self.fullscreen[:3], self.edge_programs, sources, targets):
-            dst.use()
-            _bind(prog, {"look_source": src})
-            vao.render(vertices=3)
-        self.ofbo.use()
-        ctx.viewport = (0, 0, W, H)
-        _bind(self.final, {**units, "look_gbuffer": self.gbuf, "look_edge_blurred": self.low[0]})
-        self.fullscreen[3].render(vertices=3)
-
-    def frame(self) -> np.ndarray:
-        self.draw()
-        W, H = self.size
-        data = np.frombuffer(self.ofbo.read(components=3, dtype="f1"), np.uint8).reshape(H, W, 3)
-        return data[::-1] / 255.0
-
-
-def _bind(prog, textures):
-    for unit, (name, tex) in enumerate(textures.items()):
-        if name in prog:
-            tex.use(location=unit)
-            prog[name].value = unit
-
-
-def _set_uniforms(prog, values):
-    for name, v in values.items():
-        if name not in prog:
-            continue
-        if name in ("model", "view_projection", "normal_matrix"):
-            prog[name].write(np.asarray(v, np.float32).T.tobytes())
-        elif isinstance(v, np.ndarray) and v.shape == (4, 4):
-            prog[name].write(np.asarray(v, np.float32).T.tobytes())
-        elif name == "look_edge_weights":
-            prog[name].write(np.asarray(v, np.float32).tobytes())
-        elif isinstance(v, bool):
-            prog[name].value = v
-        elif isinstance(v, (list, tuple)):
-            prog[name].value = tuple(float(x) for x in v)
-        elif name in ("look_flip_rows", "look_rows"):
-            prog[name].value = int(v)
-        else:
-            prog[name].value = float(v)
-
 
 def gl_costs(size: int, seconds: float, rounds: int) -> dict:
+    """Frames per second of the plain LUT shader and of the look's passes (`LookFrame`), the showcase at size^2."""
+    import equinox as eqx
+
     from diffwash import preview
+    from diffwash.look._frame import LookFrame
 
     ctx = preview.create_context()
-    scene = diffwash.load_scene(SCENE)
-    base = preview.Preview(ctx, scene)
+    scene = diffwash.load_scene(SHOWCASE)
+    plain = eqx.tree_at(lambda s: s.watercolour, scene, None, is_leaf=lambda x: x is None)
+    base = preview.Preview(ctx, plain)
     bfbo = base.framebuffer(size, size)
-    looks = {"look": LookFrame(ctx, scene, wl.Look(), size=(size, size)),
-             "look + hatching": LookFrame(ctx, scene, wl.Look(hatching=0.5), hatching=True, size=(size, size))}  # fmt: skip
+    no_hatch = eqx.tree_at(lambda s: s.watercolour.tam, scene, None, is_leaf=lambda x: x is None)
+    looks = {"look, every effect on": LookFrame(ctx, scene, size=(size, size)),
+             "look without hatching": LookFrame(ctx, no_hatch, size=(size, size))}  # fmt: skip
 
     def fps(draw):
         frames, t0 = 0, time.perf_counter()
@@ -404,18 +197,13 @@ def gl_costs(size: int, seconds: float, rounds: int) -> dict:
 
 
 def agreement() -> float:
-    import make_watercolour as mw
-
+    """PSNR of the look's OpenGL frame (`diffwash preview`) against `diffwash.render`, the showcase, 8-bit sRGB."""
     from diffwash import preview
 
-    scene = diffwash.load_scene(SCENE)
-    ctx = preview.create_context()
-    gl = LookFrame(ctx, scene, wl.Look()).frame()
-    geo = mw.pixel_geometry(scene)
-    strokes = wl.stroke_field(np.asarray(scene.mesh.vertices), np.asarray(scene.mesh.faces), np.asarray(scene.mesh.normals), direction="max")
-    ref = mw.render_look(scene, wl.Look(), geo, wl.screen_textures(), mw.Extras(strokes=strokes), mw.shadow_map(scene))
-    ref8 = np.round(diffwash.colorimetry.to_display(ref) * 255) / 255
-    mse = float(np.mean((gl - ref8) ** 2))
+    scene = diffwash.load_scene(SHOWCASE)
+    gl = preview.render(scene)
+    ref8 = np.round(diffwash.colorimetry.to_display(np.asarray(diffwash.render(scene))) * 255) / 255
+    mse = float(np.mean((np.asarray(gl, np.float64) - ref8) ** 2))
     return 10 * np.log10(1 / mse)
 
 

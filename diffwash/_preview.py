@@ -20,6 +20,7 @@ import numpy as np
 from ._errors import DiffwashError, FailureError
 from ._glsl import shader_sources, uniform_values
 from .colorimetry import to_display
+from .look._frame import LookFrame
 from .lut import Lut, bake, load_encoded
 
 __all__ = ["Preview", "create_context", "render", "has_display", "can_show", "renderer_name"]
@@ -214,10 +215,17 @@ def render(
     **Returns:**
 
     `(H, W, 3)` float32, row 0 at the top; uncovered pixels show the paper.
+    A scene with a watercolour look is drawn by the look's passes
+    (`diffwash.look._frame.LookFrame`: its own 3D mix LUT, per-pixel
+    thicknesses; `lut`, `shading` and `colour` do not apply, `linear` is refused).
     """
     own = ctx is None
     ctx = create_context() if own else ctx
     try:
+        if getattr(scene, "watercolour", None) is not None:
+            if linear:
+                raise ValueError("the watercolour look's frame is display sRGB (linear=False)")
+            return np.asarray(LookFrame(ctx, scene, params).frame(), np.float32)
         p = Preview(ctx, scene, params, lut=lut, shading=shading, colour=colour, linear=linear)
         try:
             return p.frame()

@@ -130,7 +130,7 @@ def run(
         raise DiffwashError(f"cannot create the output folder: {e.strerror}", file=folder) from None
     with atomic_folder(folder, merge=merge) as work:
         res = DemoResult(folder=work, truth=read_json(DATA / "truth.json"))
-        _run_steps(res, _Steps(6, out))
+        _run_steps(res, _Steps(7, out))
         if not merge:  # the demo owns the whole folder: a later demo may replace it
             (work / MARKER).write_text(f"written by diffwash {__version__} demo; `diffwash demo` may replace this "
                                        "folder\n", encoding="utf-8")  # fmt: skip
@@ -154,7 +154,7 @@ def _may_write(folder: Path, force: bool) -> bool:
 
 
 def _run_steps(res: DemoResult, steps: _Steps) -> None:
-    """The demo's six steps, writing into `res.folder`."""
+    """The demo's seven steps, writing into `res.folder`."""
     folder, out = res.folder, steps.out
 
     # 1. The pigment, from the swatch card.
@@ -230,6 +230,22 @@ def _realtime_steps(res: DemoResult, steps: _Steps, fitted: Any) -> None:
     _report(folder / "report.png", res, table, frame, fitted_img)
     res.files["report.png"] = folder / "report.png"
     res.seconds["report"] = steps.done(t)
+    _watercolour_step(res, steps)
+
+
+def _watercolour_step(res: DemoResult, steps: _Steps) -> None:
+    """Step 7: the fitted scene with the watercolour look (docs/watercolour.md)."""
+    folder = res.folder
+    t = steps.start("painting the fitted scene as a watercolour (watercolour-scene.json, watercolour.png)")
+    spec = read_json(folder / "fitted-scene.json")
+    # The defaults (paper, edges, unevenness, strokes) but the self-shadowing, whose light pass costs a cold
+    # start about 8 s of compilation; data/scenes/watercolour.json shows every effect.
+    spec["watercolour"] = {"shadow": False}
+    write_json(folder / "watercolour-scene.json", spec)
+    res.files["watercolour-scene.json"] = folder / "watercolour-scene.json"
+    write_png(folder / "watercolour.png", to_display(render(load_scene(folder / "watercolour-scene.json"))))
+    res.files["watercolour.png"] = folder / "watercolour.png"
+    res.seconds["watercolour"] = steps.done(t)
 
 
 def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, fitted_img: np.ndarray) -> None:

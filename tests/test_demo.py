@@ -19,10 +19,10 @@ def test_demo_end_to_end_cold(run_cli, tmp_path):
     out = tmp_path / "out"
 
     # Progress, then what was written and where to look.
-    assert "[1/6]" in r.stdout and "[6/6]" in r.stdout and "rms residual" in r.stdout
+    assert "[1/7]" in r.stdout and "[7/7]" in r.stdout and "rms residual" in r.stdout
     assert f"open {(out / 'export' / 'viewer.html').resolve().as_uri()}" in r.stdout
     for name in ("pigment.json", "swatch-fit.png", "fitted-scene.json", "image-fit.png", "lut.png", "lut.json",
-                 "preview.png", "report.png", "export/viewer.html", "export/mesh.glb", "export/lut.png"):
+                 "preview.png", "report.png", "watercolour-scene.json", "watercolour.png", "export/viewer.html", "export/mesh.glb", "export/lut.png"):
         assert (out / name).is_file(), name
         assert name.split("/")[0] in r.stdout
     with Image.open(out / "report.png") as im:

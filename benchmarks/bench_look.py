@@ -1,19 +1,21 @@
-"""The watercolour look's cost and real-time agreement (issue 13, stage 1), against the plain model.
+"""The watercolour look's cost and real-time agreement (issue 13), against the plain model.
 
-    python benchmarks/bench_look.py [--rounds 5] [--gl-size 1024] [--seconds 4]
+    python benchmarks/bench_look.py [--rounds 5] [--gl-size 1024] [--seconds 4] [--skip scene jax gl agreement lut]
 
-1. JAX, CPU, float32, the knot scene (100k triangles, 512^2): `diffwash.render` warm (the plain model) and,
-   on the same covered pixels, the look's extra work as stage 2 will run it (shadow lookup, surface terms,
-   the mix and stroke attributes interpolated, the G-buffer scattered, the image terms with the edge blur,
-   the covered pixels gathered and glazed with the mixed pigments, the paper's shading) against the plain
-   model's tail (glaze and scatter). Rounds alternate; medians. The ratio is (plain + extra) / plain.
-2. OpenGL (llvmpipe without a GPU), --gl-size^2, 100k triangles: the exported LUT shader (the preview) against
-   the look's pass structure: a geometry pass into a float G-buffer (model thicknesses, shadow lookup in a
-   cached light depth map, hatching optional), three passes at half resolution (box downsample, blur rows,
-   blur columns), and the final pass (screen tile, edge darkening, pigment factors, 3D mix LUT, paper
-   shading). Frames alternate in rounds; medians and the median of per-round ratios.
-3. Agreement: the look's OpenGL frame at the scene's size against the JAX pipeline of
-   docs/images/make_watercolour.py (exact Kubelka-Munk, its own shadow map), as 8-bit sRGB PSNR.
+0. `diffwash.render` of data/scenes/watercolour.json (every effect on, 512^2, 100k triangles, CPU float32),
+   warm, against the same scene without its "watercolour" object; and the PSNR between the two images.
+1. JAX kernels on the knot scene (stage 1's measurement, kept for comparison): the plain render kernel and the
+   same kernel with the look's work (shadow lookup per vertex or per pixel, surface terms, the mix and stroke
+   attributes, the G-buffer, the image terms with the edge blur, the glaze at the covered pixels, the paper's
+   shading), no hatching. Rounds alternate; medians.
+2. OpenGL (llvmpipe without a GPU), --gl-size^2, the showcase's 100k triangles: the exported LUT shader
+   (the plain preview) against the look's passes (`diffwash.look._frame.LookFrame`: geometry pass into a
+   float G-buffer with per-pixel shadow lookups and hatching, three edge passes on a reduced grid, the final
+   pass with the 3D mix LUT), with and without hatching. Frames alternate in rounds; medians and the median
+   of per-round ratios.
+3. Agreement: `diffwash preview` (the look's OpenGL passes) against `diffwash.render`, the showcase at
+   512^2, as 8-bit sRGB PSNR.
+4. The 3D mix LUT's error by size.
 
 Timings on a shared machine are provisional; the ratios (taken in alternating rounds) are what to compare.
 """
@@ -252,7 +254,7 @@ def main(argv=None) -> int:
         for name, e in lut_errors():
             print(f"| {name} | {e['max']:.2f} | {e['rms']:.3f} | {int(e['bytes']) if 'bytes' in e else '-'} |")
     if "agreement" not in args.skip:
-        print(f"\nOpenGL look frame against the JAX pipeline (512^2, 8-bit sRGB): PSNR {agreement():.1f} dB")
+        print(f"\ndiffwash preview against diffwash.render, data/scenes/watercolour.json (512^2, 8-bit sRGB): PSNR {agreement():.1f} dB")
     return 0
 
 

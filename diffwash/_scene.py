@@ -34,7 +34,7 @@ from . import pigments as _pigments
 from ._camera import Camera
 from ._errors import DiffwashError
 from ._io import FLOAT32_MAX, check_float32, finite_number, read_json, write_json
-from ._watercolour import Watercolour, parse_watercolour
+from ._watercolour import Watercolour, parse_watercolour, watercolour_files, watercolour_to_dict
 from .shading import DEFAULT_CONSTANTS, DEFAULT_PAPER, Params
 
 __all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "referenced_files", "MAX_IMAGE_SIDE"]
@@ -399,6 +399,14 @@ def scene_to_dict(scene: Scene, params: Params | None = None, *, relative_to: st
             out["mesh"] = str(mesh_path)
         if "meta" in src:
             out["meta"] = src["meta"]
+        if scene.watercolour is not None:  # the look as written, with its (possibly fitted) values
+            look = watercolour_to_dict(src.get("watercolour"), scene.watercolour)
+            for effect in ("paper", "mix"):  # paths relative to the folder the JSON will live in
+                path = look.get(effect, {}).get("image" if effect == "paper" else "map") if isinstance(look.get(effect), dict) else None
+                if isinstance(path, str):
+                    key = "image" if effect == "paper" else "map"
+                    look[effect][key] = os.path.relpath((Path(scene.path).parent / path).resolve(), folder)
+            out["watercolour"] = look
     out["image"] = {"width": scene.width, "height": scene.height}
     cam = scene.camera
     out["camera"] = {
@@ -442,7 +450,7 @@ def referenced_files(path: str | os.PathLike) -> list[Path]:
         ref = spec.get("pigment") if isinstance(spec, dict) else spec
         if isinstance(ref, str) and ref and (base / ref).is_file():
             found.append(base / ref)
-    return found
+    return found + watercolour_files(data.get("watercolour"), base)
 
 
 def save_scene(path: str | os.PathLike, scene: Scene, params: Params | None = None) -> None:

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
@@ -42,7 +43,7 @@ from ._interpolate import barycentrics, interpolate
 from ._io import check_float32, finite_number
 from ._rasterize import rasterize as rasterize_op
 
-__all__ = ["Watercolour", "parse_watercolour", "WATERCOLOUR_KEYS"]
+__all__ = ["Watercolour", "parse_watercolour", "watercolour_to_dict", "watercolour_files", "WATERCOLOUR_KEYS"]
 
 #: The keys of each effect's object, with their defaults (None: no default, the key is optional).
 WATERCOLOUR_KEYS: dict[str, dict[str, Any]] = {
@@ -254,6 +255,39 @@ def parse_watercolour(
     )
 
 
+#: Scene keys of the `Look` leaves: (effect, key) per leaf.
+_LEAF_KEYS = {"granulation": ("paper", "granulation"), "density": ("paper", "density"),
+              "paper_shading": ("paper", "shading"), "edge_darkening": ("edges", "darkening"),
+              "edge_width": ("edges", "width"), "turbulence": ("unevenness", "turbulence"),
+              "dispersion": ("unevenness", "dispersion"), "strokes": ("strokes", "amplitude"),
+              "shadow": ("shadow", "strength"), "shadow_bias": ("shadow", "bias"), "hatching": ("hatching", "amount")}  # fmt: skip
+
+
+def watercolour_to_dict(spec: Any, wc: Watercolour) -> dict:
+    """The scene file's `"watercolour"` object `spec` with the values of `wc.look` (a fitted look, written back).
+
+    Effects that are off stay off; paths, seeds and choices are kept as written.
+    """
+    out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in (spec or {}).items()}
+    for leaf, (effect, key) in _LEAF_KEYS.items():
+        on = out.get(effect, {} if effect in _ON_BY_DEFAULT else False)
+        if on is False:
+            continue
+        on = {} if on is True else on
+        on[key] = float(np.asarray(getattr(wc.look, leaf)))
+        out[effect] = on
+    return out
+
+
+def watercolour_files(spec: Any, base: Path) -> list[Path]:
+    """The files a `"watercolour"` object names (its paper image, its mix map), best effort."""
+    if not isinstance(spec, dict):
+        return []
+    paper, mix = spec.get("paper"), spec.get("mix")
+    names = [paper.get("image") if isinstance(paper, dict) else None, mix.get("map") if isinstance(mix, dict) else None]
+    return [base / n for n in names if isinstance(n, str) and n and (base / n).is_file()]
+
+
 # --- the look in the renderer ------------------------------------------------------------------------
 
 
@@ -291,10 +325,11 @@ def look_image(
     dtype = wash.dtype
     sh = hatch = None
     if wc.shadow or wc.tam is not None:
-        P, N = _points(surf, clip, vertices, faces, normals, vis, width=width, height=height)
+        P, N = jax.lax.optimization_barrier(_points(surf, clip, vertices, faces, normals, vis, width=width, height=height))
     if wc.shadow:
         vp = wl.light_view_projection(vertices, params.light)
-        depth = wl.light_depth(vertices, faces, vp, light_tri)
+        # A barrier: fused into the lookups' gathers, the map would be recomputed at every tap.
+        depth = jax.lax.optimization_barrier(wl.light_depth(vertices, faces, vp, light_tri))
         offset = 1.5 * 2 / (jnp.linalg.norm(vp[0, :3]) * light_tri.shape[0])  # look.normal_offset, traced
         sh = wl.shadow(depth, vp, P, look.shadow_bias, normals=N, normal_offset=offset)
     if wc.tam is not None:
@@ -303,6 +338,9 @@ def look_image(
         pixel = jnp.sum((P - eye) * fwd, axis=-1) * (2 * jnp.tan(jnp.deg2rad(camera.fov_y) / 2) / height)
         hatch = wl.hatch_samples(wc.tam, P, N, pixel, wc.hatch_scale)
     w, u = wl.surface_terms(wash, unlit, look, unlit_max=params.k_unlit, shadow=sh, hatch=hatch)
+    # Barriers between the stages: XLA would otherwise fuse a stage's gathers into each of its consumers
+    # and compute them again there (the hatching several times per pixel).
+    w, u = jax.lax.optimization_barrier((w, u))
     zero = jnp.zeros_like(w)
     bary = None if wc.mix is None and wc.strokes is None else _bary(surf, clip, faces, vis, width, height)
     m = zero if wc.mix is None else interpolate(jnp.asarray(wc.mix, dtype), faces, vis.pixel_tri, bary)
@@ -313,11 +351,11 @@ def look_image(
     t = jnp.zeros((n, 2), dtype).at[pixels].set(jnp.stack([w, u], 1), mode="drop", unique_indices=True)
     mean = wl.local_mean(t.reshape(height, width, 2), look.edge_width, wl.edge_downsample(height))
     mean = mean.reshape(n, 2).at[pixels].get(mode="fill", fill_value=0)
-    screen = jnp.asarray(wc.screen, dtype)
+    screen = jax.lax.optimization_barrier(jnp.asarray(wc.screen, dtype))
     rows, cols = screen.shape[:2]
     p = jnp.minimum(pixels, n - 1)
     at = screen[(p // width) % rows, (p % width) % cols]  # the screen tile at the covered pixels
-    thick = wl.image_terms(jnp.stack([w, u, m, b], 1), at, look, wc.pigments, mean=mean)
+    thick = jax.lax.optimization_barrier(wl.image_terms(jnp.stack([w, u, m, b], 1), at, look, wc.pigments, mean=mean))
     if wc.mix is None:
         rgb = shading.glaze(params, thick[:, 0], thick[:, 1])
     else:

@@ -184,3 +184,20 @@ def test_gradients_are_finite_with_every_effect_at_zero(grad_scene):
     weights = jnp.ones((24, 24, 3))
     g = jax.grad(_loss(grad_scene, weights), argnums=(0, 1))(zero, jnp.zeros_like(jnp.asarray(wc.mix)))
     assert all(np.all(np.isfinite(np.asarray(x))) for x in jax.tree.leaves(g))
+
+
+def test_a_saved_scene_keeps_its_look_with_fitted_values(tmp_path):
+    from diffwash._io import write_png
+
+    write_png(tmp_path / "paper.png", np.repeat(np.random.default_rng(0).uniform(size=(16, 16, 1)), 3, axis=2))
+    path = _write(tmp_path, _scene_dict({"paper": {"image": "paper.png"}, "edges": {"width": 2.0}, "strokes": False}))
+    assert tmp_path / "paper.png" in diffwash.referenced_files(path)  # an output may not overwrite it
+    scene = diffwash.load_scene(path)
+    fitted = eqx.tree_at(lambda s: s.watercolour.look.edge_darkening, scene, np.float64(1.25))
+    (tmp_path / "out").mkdir()
+    diffwash.save_scene(tmp_path / "out" / "fitted.json", fitted)
+    again = diffwash.load_scene(tmp_path / "out" / "fitted.json")
+    assert float(again.watercolour.look.edge_darkening) == 1.25
+    assert float(again.watercolour.look.edge_width) == 2.0
+    assert again.watercolour.strokes is None  # off stays off
+    np.testing.assert_array_equal(again.watercolour.screen, scene.watercolour.screen)  # the paper image, found again

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
@@ -206,6 +207,7 @@ def sample_tam(tam: list, uv: Float[ArrayLike, "*b 2"], lod: Float[ArrayLike, "*
     sizes_np = np.array([np.shape(level)[0] for level in tam], np.int32)
     offsets_np = np.concatenate([[0], np.cumsum(sizes_np.astype(np.int64) ** 2)[:-1]]).astype(np.int32)
     flat = jnp.concatenate([jnp.reshape(jnp.asarray(level), (-1, jnp.shape(level)[-1])) for level in tam], axis=0)
+    flat = jax.lax.optimization_barrier(flat)  # else XLA fuses the concatenation into every gather
     sizes, offsets = jnp.asarray(sizes_np), jnp.asarray(offsets_np)
     l0 = jnp.clip(jnp.floor(lod), 0, top)
     f = (jnp.clip(lod, 0, top) - l0)[..., None]

@@ -201,3 +201,23 @@ def test_a_saved_scene_keeps_its_look_with_fitted_values(tmp_path):
     assert float(again.watercolour.look.edge_width) == 2.0
     assert again.watercolour.strokes is None  # off stays off
     np.testing.assert_array_equal(again.watercolour.screen, scene.watercolour.screen)  # the paper image, found again
+
+
+def test_look_parameters_fit_to_a_target_render(grad_scene):
+    """Least squares through diffwash.render (optimistix Levenberg-Marquardt) finds the edge darkening,
+    granulation and turbulence of a target rendered with other values."""
+    import optimistix as optx
+
+    names = ("edge_darkening", "granulation", "turbulence")
+    truth = eqx.tree_at(lambda lk: [getattr(lk, n) for n in names], grad_scene.watercolour.look,
+                        [jnp.float64(4.0), jnp.float64(0.35), jnp.float64(0.3)])  # fmt: skip
+
+    def image(values):
+        look = eqx.tree_at(lambda lk: [getattr(lk, n) for n in names], grad_scene.watercolour.look, list(values))
+        return diffwash.render(eqx.tree_at(lambda s: s.watercolour.look, grad_scene, look))
+
+    target = image([getattr(truth, n) for n in names])
+    start = jnp.asarray([float(getattr(grad_scene.watercolour.look, n)) for n in names])
+    sol = optx.least_squares(lambda y, _: (image(list(y)) - target).reshape(-1), optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10),
+                             start, max_steps=50)  # fmt: skip
+    np.testing.assert_allclose(np.asarray(sol.value), [4.0, 0.35, 0.3], rtol=1e-4)

@@ -29,6 +29,7 @@ from typing import Any
 import equinox as eqx
 import numpy as np
 import trimesh
+from jaxtyping import Float, Int
 
 from . import pigments as _pigments
 from ._camera import Camera
@@ -56,9 +57,9 @@ class Mesh(eqx.Module):
     `closed` is True for a watertight mesh (its back faces are never seen).
     """
 
-    vertices: Any
-    faces: Any
-    normals: Any
+    vertices: Float[np.ndarray, "V 3"]
+    faces: Int[np.ndarray, "F 3"]
+    normals: Float[np.ndarray, "V 3"]
     closed: bool = eqx.field(static=True, default=False)
 
 

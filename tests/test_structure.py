@@ -127,4 +127,4 @@ def test_shaders_are_generated_from_the_model():
     assert float_literal(colorimetry.SRGB_LINEAR_BREAK) in frag
     assert float_literal(colorimetry.SRGB_ENCODED_BREAK) in frag
     for name in ("km_layer", "km_composite", "km_over", "schlick_bias", "perlin_gain", "watercolour_thicknesses"):
-        assert f"Generated from diffwash." in frag and f" {name}(" in frag
+        assert "Generated from diffwash." in frag and f" {name}(" in frag

@@ -166,10 +166,10 @@ def _command(block: Block, script: Path) -> list[str]:
     return ["bash", "-euo", "pipefail", str(script)]
 
 
-@pytest.mark.parametrize("block", RUNNABLE, ids=lambda b: f"{b.where}-{b.info}")
-def test_example_runs(block, tmp_path, shims, jax_cache):
-    work = tmp_path / "clone"
-    work.mkdir()
+def run_block(block: Block, folder: Path, shims: Path, jax_cache: Path) -> str | None:
+    """Run one block in `folder`/clone (a fresh copy of `COPIED`); None if it succeeded, else why not."""
+    work = folder / "clone"
+    work.mkdir(parents=True)
     for name in COPIED:
         shutil.copytree(ROOT / name, work / name)
     env = dict(os.environ)
@@ -180,11 +180,32 @@ def test_example_runs(block, tmp_path, shims, jax_cache):
         MPLBACKEND="Agg",
     )
     env.pop("JAX_ENABLE_X64", None)
-    cmd = _command(block, tmp_path / "block")
+    cmd = _command(block, folder / "block")
     try:
         r = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True, timeout=TIMEOUT)
     except subprocess.TimeoutExpired:
-        pytest.fail(f"{block.where}: the {block.info} block ran past {TIMEOUT} s")
-    if r.returncode != 0:
-        out = (r.stdout[-2000:] + "\n" + r.stderr[-4000:]).strip()
-        pytest.fail(f"{block.where}: the {block.info} block failed (exit status {r.returncode}):\n{out}", pytrace=False)
+        return f"{block.where}: the {block.info} block ran past {TIMEOUT} s"
+    if r.returncode == 0:
+        return None
+    out = (r.stdout[-2000:] + "\n" + r.stderr[-4000:]).strip()
+    return f"{block.where}: the {block.info} block failed (exit status {r.returncode}):\n{out}"
+
+
+@pytest.mark.parametrize("block", RUNNABLE, ids=lambda b: f"{b.where}-{b.info}")
+def test_example_runs(block, tmp_path, shims, jax_cache):
+    failure = run_block(block, tmp_path, shims, jax_cache)
+    if failure:
+        pytest.fail(failure, pytrace=False)
+
+
+def test_a_broken_example_is_reported_with_its_line(tmp_path, shims, jax_cache):
+    doc = ROOT / "README.md"  # any document: the blocks below are made up, not read from it
+    py = Block(doc, 40, "python", "x = 1\nopen('data/no-such-file.csv')", None)
+    message = run_block(py, tmp_path / "py", shims, jax_cache)
+    assert message.startswith("README.md:40: the python block failed (exit status 1)")
+    assert 'README.md", line 42' in message and "no-such-file.csv" in message
+    sh = Block(doc, 7, "console", "$ diffwash --version\ndiffwash 0.0\n$ diffwash no-such-command", None)
+    message = run_block(sh, tmp_path / "sh", shims, jax_cache)
+    assert message.startswith("README.md:7: the console block failed (exit status 2)") and "invalid choice" in message
+    ok = Block(doc, 1, "bash", "test -f data/scenes/knot.json && diffwash --version && python -c 'import diffwash'", None)
+    assert run_block(ok, tmp_path / "ok", shims, jax_cache) is None

@@ -182,7 +182,7 @@ def run_block(block: Block, folder: Path, shims: Path, jax_cache: Path) -> str |
     env.pop("JAX_ENABLE_X64", None)
     cmd = _command(block, folder / "block")
     try:
-        r = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+        r = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True, timeout=TIMEOUT, check=False)
     except subprocess.TimeoutExpired:
         return f"{block.where}: the {block.info} block ran past {TIMEOUT} s"
     if r.returncode == 0:
@@ -204,8 +204,10 @@ def test_a_broken_example_is_reported_with_its_line(tmp_path, shims, jax_cache):
     message = run_block(py, tmp_path / "py", shims, jax_cache)
     assert message.startswith("README.md:40: the python block failed (exit status 1)")
     assert 'README.md", line 42' in message and "no-such-file.csv" in message
-    sh = Block(doc, 7, "console", "$ diffwash --version\ndiffwash 0.0\n$ diffwash no-such-command", None)
+    sh = Block(doc, 7, "console", "$ python -c 'print(1)'\n1\n$ python -c 'raise SystemExit(3)'", None)
     message = run_block(sh, tmp_path / "sh", shims, jax_cache)
-    assert message.startswith("README.md:7: the console block failed (exit status 2)") and "invalid choice" in message
-    ok = Block(doc, 1, "bash", "test -f data/scenes/knot.json && diffwash --version && python -c 'import diffwash'", None)
+    assert message.startswith("README.md:7: the console block failed (exit status 3)")
+    # The block sees the clone's data, and this repository's diffwash on the PATH and in Python.
+    where = "import diffwash, sys; assert diffwash.__file__.startswith(sys.argv[1]), diffwash.__file__"
+    ok = Block(doc, 1, "bash", f"test -f data/scenes/knot.json\ncommand -v diffwash\npython -c '{where}' '{ROOT}'", None)
     assert run_block(ok, tmp_path / "ok", shims, jax_cache) is None

@@ -11,7 +11,7 @@ Prints Markdown tables:
    render of the scene (the unit a fit's cost is counted in).
    - swatch fit: `diffwash.fit.fit_swatches` on a generated JPEG swatch card (4 coat counts over paper and
      black, 360x264 px), from reading the photo to the diagnostics (target <= 0.5 s warm), with the
-     default CIE94 residuals and with CIEDE2000 residuals;
+     default noise-weighted residuals (with intervals) and with unweighted CIE94 residuals;
    - image fit: `diffwash.fit.fit_image` on the sphere scene at 256x256 px, 10 parameters (gain, bias,
      k_wash, k_unlit, shininess, light (2 angles), paper (3)), from a start 20% off (target <= 2 s warm);
    - table fit: `diffwash.fit.fit_table` on the NTU training amounts (7 paints in one call), with the
@@ -22,7 +22,8 @@ Prints Markdown tables:
    now filled.
 3. Accuracy on generated swatch photos: each of the 12 seed pigments on a JPEG card with the default
    camera faults (`diffwash.swatchcard.CameraEffects()`), fitted from its 1, 2 and 4 coat patches,
-   predicted at 3 and 5 coats over paper and black, CIEDE2000 against the true Kubelka-Munk colours.
+   predicted at 3 and 5 coats over paper and black, CIEDE2000 against the true Kubelka-Munk colours
+   (`benchmarks/bench_coverage.py` does this on many cards under harsher faults, with interval coverage).
 4. Accuracy on real measurements (NTU WPSM, Winsor & Newton watercolours): each paint fitted at half of
    its amounts and predicted at the other half, mean CIEDE2000 per paint, for the plain per-pigment LM fit
    and the diffwash model, both directions of the split, and ablations of the model's parts.
@@ -89,17 +90,16 @@ def bench_swatch(folder: Path, repeats: int) -> list[tuple]:
     import jax.numpy as jnp
 
     from diffwash.fit._kmfit import residuals
-    from diffwash.fit._swatch import SWATCH_MODEL
 
     card = make_swatch_card(pigments.load("Quinacridone Rose"), coats=(1, 2, 3, 4), seed=1)
     save_swatch_card(card, folder / "card.jpg")
     layout = json.loads((folder / "card.json").read_text())
     warm, comp, fit = timed(lambda: fit_swatches(folder / "card.jpg", layout), repeats)
-    rows = [("swatch fit (photo to pigment), CIE94 residuals", warm, comp, peak_rss_mb(),
+    rows = [("swatch fit (photo to pigment), noise-weighted with intervals (the default)", warm, comp, peak_rss_mb(),
              f"{fit.iterations} LM steps, mean dE00 {fit.mean_delta_e:.2f}")]  # fmt: skip
-    de = FitModel(thickness="linear", loss="de2000")
-    w2, c2, f2 = timed(lambda: fit_swatches(folder / "card.jpg", layout, model=de), repeats)
-    rows.append(("swatch fit, CIEDE2000 residuals", w2, c2, peak_rss_mb(),
+    cie94 = FitModel(thickness="linear", loss="cie94")
+    w2, c2, f2 = timed(lambda: fit_swatches(folder / "card.jpg", layout, model=cie94), repeats)
+    rows.append(("swatch fit, unweighted CIE94 residuals", w2, c2, peak_rss_mb(),
                  f"{f2.iterations} LM steps, mean dE00 {f2.mean_delta_e:.2f}"))  # fmt: skip
     # Peer: MINPACK on the same residuals (rows from this fit's patches).
     from diffwash.fit._kmfit import Rows
@@ -114,11 +114,12 @@ def bench_swatch(folder: Path, repeats: int) -> list[tuple]:
     def flat(y):
         return {"log_K": y[:3], "log_S": y[3:]}
 
-    r = jax.jit(lambda y: residuals(flat(y), (SWATCH_MODEL, rw)))
-    J = jax.jit(jax.jacfwd(lambda y: residuals(flat(y), (SWATCH_MODEL, rw))))
+    r = jax.jit(lambda y: residuals(flat(y), (cie94, rw)))
+    J = jax.jit(jax.jacfwd(lambda y: residuals(flat(y), (cie94, rw))))
     y0 = np.log(np.concatenate([fit.pigment.K * 1.5, fit.pigment.S * 0.7])).astype(np.float32)
     pw, pc, sol = timed(minpack(r, J, y0), repeats)
-    rows.append(("  peer: SciPy MINPACK LM, same residuals (solve only)", pw, pc, peak_rss_mb(), f"{sol.nfev} evaluations"))
+    rows.append(("  peer: SciPy MINPACK LM, the CIE94 residuals (solve only)", pw, pc, peak_rss_mb(),
+                 f"{sol.nfev} evaluations"))  # fmt: skip
     return rows
 
 

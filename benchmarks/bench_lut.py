@@ -116,7 +116,7 @@ def main(argv=None) -> int:
     print("| --- | ---: | ---: |")
     for shading in ("per-pixel", "per-vertex"):
         s = diffwash.load_scene(args.scene, shading=shading)
-        ref = np.round(lut.srgb_encode(np.asarray(diffwash.render(s))) * 255)
+        ref = np.round(diffwash.colorimetry.to_display(np.asarray(diffwash.render(s))) * 255)
         frame = np.round(preview.render(s, lut=lut.load_encoded(lut.bake(s, 256), "png16"), ctx=ctx) * 255)
         mse = np.mean(((frame - ref) / 255) ** 2)
         far = int(np.sum(np.abs(frame - ref).max(-1) > 1))

@@ -22,7 +22,7 @@ That is the 1D coverage of the pixel by the occluder along the pair's
 direction, and `t` is a smooth function of the clip-space vertices.
 
 Steps 1-3 (which pairs, which edge) are decided once per visibility
-(`prepare`, non-differentiable, cached with the visibility); `antialias`
+(`silhouettes`: non-differentiable, on the device, jittable); `antialias`
 recomputes `t` and the blend differentiably.
 
 **References:**
@@ -33,23 +33,23 @@ recomputes `t` and the blend differentiably.
 
 from __future__ import annotations
 
-import collections
 import functools
-from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float, Int
+from jaxtyping import Array, ArrayLike, Float, Int
 
-from ._barycentric import corners, edge_functions, pixel_ndc
-from ._raster import Visibility, clip_positions, host_context, pad_size, rasterize_arrays, view_projection
+from ._cache import LRU
+from ._interpolate import corners, edge_functions, pixel_ndc
+from ._rasterize import compact, is_concrete
 
-__all__ = ["Silhouettes", "edge_topology", "prepare", "antialias", "traced_visibility"]
+__all__ = ["Silhouettes", "edge_topology", "silhouettes", "antialias"]
 
 _EPS = 1.0 / 16  # tolerance on the crossing fraction (as nvdiffrast's)
-_topology_cache: collections.OrderedDict[tuple, np.ndarray] = collections.OrderedDict()
+_WALK = 6  # triangles a pair's segment may cross before it reaches a silhouette edge
+_topology_cache = LRU(4)
 
 
 class Silhouettes(eqx.Module):
@@ -69,24 +69,22 @@ class Silhouettes(eqx.Module):
     edge: Int[Array, " N"]
 
 
-def edge_topology(faces: Any) -> tuple[np.ndarray, np.ndarray]:
+def edge_topology(faces: Int[ArrayLike, "F 3"]) -> tuple[Int[Array, "F 3"], Int[Array, "F 3"]]:
     """For each triangle edge: the triangle across it and that triangle's far vertex.
 
     Edge `i` of triangle `t` joins `faces[t, (i + 1) % 3]` and
     `faces[t, (i + 2) % 3]`. Both answers are -1 for a boundary edge or one
-    shared by more than two triangles. Cached per `faces` content.
+    shared by more than two triangles. A property of the mesh: host work, once
+    per mesh (cached by the faces' identity or content).
 
     **Returns:**
 
-    `(neighbour, opposite)`, each (F, 3) int32.
+    `(neighbour, opposite)`, each (F, 3) int32, on the device.
     """
-    from ._render import _array_key
+    return _topology_cache.get((faces,), lambda: _edge_topology(np.asarray(faces, np.int64)))
 
-    faces = np.asarray(faces, np.int64)
-    key = _array_key(faces)
-    hit = _topology_cache.get(key)
-    if hit is not None:
-        return hit
+
+def _edge_topology(faces: np.ndarray) -> tuple[Array, Array]:
     n_tri = len(faces)
     a = faces[:, [1, 2, 0]].reshape(-1)
     b = faces[:, [2, 0, 1]].reshape(-1)
@@ -105,32 +103,39 @@ def edge_topology(faces: Any) -> tuple[np.ndarray, np.ndarray]:
     opposite = np.full(3 * n_tri, -1, np.int64)
     flat_faces = faces.reshape(-1)
     opposite[e1], opposite[e2] = flat_faces[e2], flat_faces[e1]  # edge i's far vertex is faces[t, i]
-    out = (neighbour.reshape(n_tri, 3).astype(np.int32), opposite.reshape(n_tri, 3).astype(np.int32))
-    _topology_cache[key] = out
-    while len(_topology_cache) > 4:
-        _topology_cache.popitem(last=False)
-    return out
+    return (
+        jax.device_put(neighbour.reshape(n_tri, 3).astype(np.int32)),
+        jax.device_put(opposite.reshape(n_tri, 3).astype(np.int32)),
+    )
 
 
-def _pairs(tri_id: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Adjacent pixel pairs seeing different triangles: (occluder pixel, other pixel, vertical?)."""
+@functools.partial(jax.jit, static_argnames=("cull",))
+def _candidates(tri_id, depth, neighbour, *, cull):
+    """All adjacent pixel pairs: (occluder, other, vertical?) and whether they may straddle a silhouette.
+
+    Candidates see different triangles. With back faces culled, every visible
+    triangle faces the camera, so a pair of pixels in two triangles that share
+    an edge straddles no silhouette (the segment crosses the shared edge):
+    those pairs, most of them with small triangles, are no candidates.
+    """
     h, w = tri_id.shape
-    idx = np.arange(h * w, dtype=np.int32).reshape(h, w)
-    horizontal = idx[:, :-1][tri_id[:, :-1] != tri_id[:, 1:]]
-    vertical = idx[:-1, :][tri_id[:-1, :] != tri_id[1:, :]]
-    p = np.concatenate([horizontal, vertical])
-    q = np.concatenate([horizontal + 1, vertical + w])
-    down = np.concatenate([np.zeros(len(horizontal), bool), np.ones(len(vertical), bool)])
-    d = depth.reshape(-1)
+    idx = jnp.arange(h * w, dtype=jnp.int32).reshape(h, w)
+    p = jnp.concatenate([idx[:, :-1].reshape(-1), idx[:-1, :].reshape(-1)])
+    q = jnp.concatenate([idx[:, 1:].reshape(-1), idx[1:, :].reshape(-1)])
+    down = jnp.concatenate([jnp.zeros(h * (w - 1), bool), jnp.ones((h - 1) * w, bool)])
+    flat, d = tri_id.reshape(-1), depth.reshape(-1)
+    tp, tq = flat[p], flat[q]
+    mask = tp != tq
+    if cull:
+        nb = neighbour[jnp.maximum(tp, 0)]
+        adjacent = (tp >= 0) & (tq >= 0) & ((nb[:, 0] == tq) | (nb[:, 1] == tq) | (nb[:, 2] == tq))
+        mask = mask & ~adjacent
     p_front = d[p] <= d[q]
-    return np.where(p_front, p, q), np.where(p_front, q, p), down
-
-
-_WALK = 6  # triangles a pair's segment may cross before it reaches a silhouette edge
+    return jnp.where(p_front, p, q), jnp.where(p_front, q, p), down, mask
 
 
 @functools.partial(jax.jit, static_argnames=("width", "height"))
-def _analyse(vertices, faces, view_projection, neighbour, opposite, tri_id, a, b, down, *, width, height):
+def _analyse(clip, faces, neighbour, opposite, tri_id, a, b, down, *, width, height):
     """For candidate pairs: whether a silhouette edge splits them, which triangle and edge.
 
     The segment from the occluder's pixel centre `a` to `b` is followed across
@@ -142,7 +147,6 @@ def _analyse(vertices, faces, view_projection, neighbour, opposite, tri_id, a, b
     valid = a < n
     a = jnp.where(valid, a, 0)
     b = jnp.where(valid, b, 0)
-    clip = clip_positions(vertices, view_projection)
     xa, ya = pixel_ndc(a, width, height, clip.dtype)
     xb, yb = pixel_ndc(b, width, height, clip.dtype)
     rows = jnp.arange(a.shape[0])
@@ -185,86 +189,63 @@ def _analyse(vertices, faces, view_projection, neighbour, opposite, tri_id, a, b
     return found, out_k, out_tri.astype(jnp.int32)
 
 
-def _silhouettes(
-    vertices, faces, vp, tri_id: np.ndarray, depth: np.ndarray, width: int, height: int, cull: bool, size: int | None
-):
-    """Work items from concrete arrays (host). `size`: pad to this many (else a bucket size).
+def _compact(mask: Array, size: int | None, arrays: tuple[Array, ...], fill: tuple) -> list[Array]:
+    """The entries of `arrays` where `mask` holds, first, padded with `fill` to a static `size`.
 
-    With back faces culled, every visible triangle faces the camera, so a pair
-    of pixels in two triangles that share an edge straddles no silhouette (the
-    segment crosses the shared edge): those pairs, most of them with small
-    triangles, are dropped before the analysis.
+    `size` None: the count rounded up to a bucket (read from the device).
     """
-    a, b, down = _pairs(tri_id, depth)
-    neighbour, _ = edge_topology(faces)
-    if cull and len(a):
-        flat = tri_id.reshape(-1)
-        ta, tb = flat[a], flat[b]
-        nb = neighbour[ta]
-        adjacent = (nb[:, 0] == tb) | (nb[:, 1] == tb) | (nb[:, 2] == tb)
-        a, b, down = a[~adjacent], b[~adjacent], down[~adjacent]
-    m = pad_size(len(a), 64)
-    n = width * height
-
-    def pad(x: np.ndarray, fill: Any, size: int) -> np.ndarray:
-        return np.concatenate([x, np.full(size - len(x), fill, x.dtype)])
-
-    keep, k, tri = _analyse(
-        jax.device_put(np.asarray(vertices)),
-        jax.device_put(np.asarray(faces).astype(np.int32, copy=False)),
-        jax.device_put(np.asarray(vp)),
-        *(jax.device_put(x) for x in edge_topology(faces)),
-        jax.device_put(tri_id.reshape(-1)),
-        jax.device_put(pad(a, n, m)),
-        jax.device_put(pad(b, n, m)),
-        jax.device_put(pad(down, False, m)),
-        width=width,
-        height=height,
-    )
-    sel = np.flatnonzero(np.asarray(keep))
-    m = pad_size(len(sel), 64) if size is None else size
-    return {
-        "a": pad(a[sel], n, m),
-        "b": pad(b[sel], n, m),
-        "tri": pad(np.asarray(tri)[sel], 0, m),
-        "edge": pad(np.asarray(k)[sel], 0, m),
-    }
+    idx = compact(mask, size)
+    ok = idx < mask.shape[0]
+    safe = jnp.minimum(idx, mask.shape[0] - 1)
+    return [jnp.where(ok, x[safe], f) for x, f in zip(arrays, fill)]
 
 
-def prepare(scene: Any, vis: Visibility) -> Visibility:
-    """`vis` with its antialiasing work items (host function; needs a concrete scene)."""
-    from ._render import _geometry, _is_concrete
+def silhouettes(
+    clip: Float[ArrayLike, "V 4"],
+    faces: Int[ArrayLike, "F 3"],
+    tri_id: Int[Array, "H W"],
+    depth: Float[Array, "H W"],
+    *,
+    cull_backfaces: bool,
+    topology: tuple[Array, Array] | None = None,
+    size: int | None = None,
+) -> "Silhouettes":
+    """The antialiasing work items of a raster: the pixel pairs a silhouette edge splits (not differentiable).
 
-    if not _is_concrete(_geometry(scene)):
-        raise ValueError(
-            "antialiasing needs a visibility prepared for it while the geometry is traced: "
-            "pass visibility=diffwash.rasterize(scene, antialias=True)"
-        )
-    with host_context():
-        vp = np.asarray(view_projection(scene.camera, scene.width / scene.height))
-        items = _silhouettes(
-            scene.mesh.vertices,
-            scene.mesh.faces,
-            vp,
-            np.asarray(vis.tri_id),
-            np.asarray(vis.depth),
-            scene.width,
-            scene.height,
-            scene.cull_backfaces,
-            None,
-        )
-        return eqx.tree_at(
-            lambda v: v.silhouettes,
-            vis,
-            Silhouettes(**{k: jax.device_put(x) for k, x in items.items()}),
-            is_leaf=lambda x: x is None,
-        )
+    **Arguments:**
+
+    - `clip`: clip-space vertex positions.
+    - `faces`: the mesh's triangles.
+    - `tri_id`, `depth`: their `Raster`'s (`diffwash._rasterize.rasterize`).
+    - `cull_backfaces`: whether back faces were culled (a Python bool).
+    - `topology`: `edge_topology(faces)`; computed here by default (host
+      work, once per mesh): pass it when `faces` is traced.
+    - `size`: the static number of work items. By default the count rounded
+      up to a bucket when the inputs are concrete (read from the device), and
+      two per pixel (every possible pair) when they are traced.
+
+    **Returns:**
+
+    The `Silhouettes`, padded with `a = H * W`. Runs on the device, under
+    `jax.jit` and `jax.vmap` too (with `topology` given).
+    """
+    h, w = tri_id.shape
+    n = h * w
+    neighbour, opposite = edge_topology(faces) if topology is None else topology
+    clip = jax.lax.stop_gradient(jnp.asarray(clip))
+    faces = jnp.asarray(faces, jnp.int32)
+    a, b, down, mask = _candidates(tri_id, depth, neighbour, cull=bool(cull_backfaces))
+    exact = size is None and is_concrete(clip, tri_id)
+    a, b, down = _compact(mask, None if exact else 2 * n, (a, b, down), (n, n, False))
+    keep, k, tri = _analyse(clip, faces, neighbour, opposite, tri_id.reshape(-1), a, b, down, width=w, height=h)
+    a, b, tri, k = _compact(keep, None if exact else (size or 2 * n), (a, b, tri, k), (n, n, 0, 0))
+    return Silhouettes(a=a.astype(jnp.int32), b=b.astype(jnp.int32), tri=tri.astype(jnp.int32), edge=k.astype(jnp.int32))
 
 
 def antialias(
     image: Float[Array, "n C"],
     clip: Float[Array, "V 4"],
-    faces: Int[Array, "F 3"],
+    faces: Int[ArrayLike, "F 3"],
     silhouettes: Silhouettes,
     width: int,
     height: int,
@@ -276,7 +257,7 @@ def antialias(
     - `image`: (H * W, C) row-major pixel values (colour and, usually, coverage).
     - `clip`: clip-space vertex positions (differentiable).
     - `faces`: the mesh's triangles.
-    - `silhouettes`: the work items of the visibility (`prepare`).
+    - `silhouettes`: the work items (`silhouettes`).
     - `width`, `height`: image size.
 
     **Returns:**
@@ -286,6 +267,7 @@ def antialias(
     """
     n = width * height
     s = silhouettes
+    faces = jnp.asarray(faces, jnp.int32)
     valid = s.a < n
     a = jnp.where(valid, s.a, 0)
     b = jnp.where(valid, s.b, 0)
@@ -305,47 +287,3 @@ def antialias(
     delta = alpha[:, None] * (cb - ca)
     target = jnp.where(valid, jnp.where(alpha > 0, a, b), n)
     return image.at[target].add(delta, mode="drop")
-
-
-def traced_visibility(scene: Any, antialias: bool) -> Visibility:
-    """The visibility of a scene whose geometry or camera is traced, by a host callback.
-
-    Arrays have their largest possible sizes (every pixel; two pairs per
-    pixel), as the callback's output shapes must be known when tracing.
-    """
-    w, h = scene.width, scene.height
-    n = w * h
-    sg = jax.lax.stop_gradient
-    vertices = sg(jnp.asarray(scene.mesh.vertices))
-    faces = jnp.asarray(scene.mesh.faces, jnp.int32)
-    vp = sg(scene.camera.view_projection(w / h))
-    near = sg(jnp.asarray(scene.camera.near))
-    far = sg(jnp.asarray(scene.camera.far))
-    cull = scene.cull_backfaces
-
-    def host(vertices, faces, vp, near, far):
-        vertices, faces, vp = np.asarray(vertices), np.asarray(faces), np.asarray(vp)
-        tri_id, depth = rasterize_arrays(vertices, faces, vp, float(near), float(far), w, h, cull)
-        out = [tri_id.astype(np.int32), depth.astype(np.float32)]
-        if antialias:
-            items = _silhouettes(vertices, faces, vp, tri_id, depth, w, h, cull, 2 * n)
-            out += [items[k].astype(np.int32) for k in ("a", "b", "tri", "edge")]
-        return tuple(out)
-
-    shapes = [jax.ShapeDtypeStruct((h, w), jnp.int32), jax.ShapeDtypeStruct((h, w), jnp.float32)]
-    if antialias:
-        shapes += [jax.ShapeDtypeStruct((2 * n,), jnp.int32)] * 4
-    out = jax.pure_callback(host, tuple(shapes), vertices, faces, vp, near, far, vmap_method="sequential")
-    tri_id = out[0]
-    flat = tri_id.reshape(-1)
-    covered = flat >= 0
-    sil = Silhouettes(*out[2:]) if antialias else None
-    return Visibility(
-        tri_id=tri_id,
-        depth=out[1],
-        pixels=jnp.where(covered, jnp.arange(n, dtype=jnp.int32), n),
-        pixel_tri=jnp.maximum(flat, 0),
-        silhouettes=sil,
-        width=w,
-        height=h,
-    )

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 __all__ = ["Camera", "look_at", "perspective"]
 
@@ -15,7 +13,7 @@ def _normalize(v: Array) -> Array:
     return v / jnp.linalg.norm(v)
 
 
-def look_at(eye: Float[Array, "3"], target: Float[Array, "3"], up: Float[Array, "3"]) -> Float[Array, "4 4"]:
+def look_at(eye: Float[ArrayLike, "3"], target: Float[ArrayLike, "3"], up: Float[ArrayLike, "3"]) -> Float[Array, "4 4"]:
     """World-to-eye matrix (OpenGL convention: the eye looks down -z, y up).
 
     Callers ensure `eye != target` and `up` not parallel to the view (the scene
@@ -31,7 +29,9 @@ def look_at(eye: Float[Array, "3"], target: Float[Array, "3"], up: Float[Array, 
     )
 
 
-def perspective(fov_y_deg: Any, aspect: Any, near: Any, far: Any) -> Float[Array, "4 4"]:
+def perspective(
+    fov_y_deg: Float[ArrayLike, ""], aspect: Float[ArrayLike, ""], near: Float[ArrayLike, ""], far: Float[ArrayLike, ""]
+) -> Float[Array, "4 4"]:
     """OpenGL's perspective projection (`gluPerspective`): eye space to clip space."""
     fov_y_deg, aspect, near, far = (jnp.asarray(v) for v in (fov_y_deg, aspect, near, far))
     f = 1 / jnp.tan(jnp.radians(fov_y_deg) / 2)
@@ -53,12 +53,12 @@ class Camera(eqx.Module):
     field of view, degrees), `near`, `far` (clip distances along the view axis).
     """
 
-    eye: Any
-    target: Any
-    up: Any
-    fov_y: Any
-    near: Any
-    far: Any
+    eye: Float[ArrayLike, "3"]
+    target: Float[ArrayLike, "3"]
+    up: Float[ArrayLike, "3"]
+    fov_y: Float[ArrayLike, ""]
+    near: Float[ArrayLike, ""]
+    far: Float[ArrayLike, ""]
 
     def view(self) -> Float[Array, "4 4"]:
         """World-to-eye matrix."""

@@ -24,7 +24,14 @@ class DiffwashError(Exception):
             prefix += f"{self.file}: "
         if field is not None:
             prefix += f"{field}: "
-        super().__init__(prefix + message)
+        super().__init__(_one_line(prefix + message))
+
+
+def _one_line(text: str) -> str:
+    """`text` with line breaks and other control characters (from a file's keys or names) escaped: one line."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 class FailureError(DiffwashError):

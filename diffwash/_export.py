@@ -19,17 +19,20 @@ folder beside it, which is then renamed.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
-from ._errors import DiffwashError
-from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
+import numpy as np
+import trimesh
+
 from . import lut as _lut
+from ._errors import DiffwashError
+from ._io import atomic_folder
+from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
+from ._scene import Scene, load_scene, scene_to_dict
+from ._viewer import viewer_html
 
 __all__ = ["export", "mesh_glb", "EXPORT_FILES"]
 
@@ -51,9 +54,6 @@ EXPORT_FILES = (
 
 def mesh_glb(mesh: Any) -> bytes:
     """The mesh (vertices, faces, vertex normals) as binary glTF 2.0."""
-    import numpy as np
-    import trimesh
-
     m = trimesh.Trimesh(
         vertices=np.asarray(mesh.vertices, np.float64),
         faces=np.asarray(mesh.faces, np.int64),
@@ -64,8 +64,6 @@ def mesh_glb(mesh: Any) -> bytes:
 
 
 def _scene_of(scene_or_path: Any) -> Any:
-    from ._scene import Scene, load_scene
-
     if isinstance(scene_or_path, Scene):
         return scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
@@ -108,9 +106,6 @@ def export(
 
     The paths written, in `folder`.
     """
-    from ._scene import scene_to_dict
-    from ._viewer import viewer_html
-
     if target not in TARGETS:
         raise DiffwashError(f"must be one of {', '.join(TARGETS)}, got {target!r}", field="target")
     if fmt not in _lut.FORMATS:
@@ -125,16 +120,11 @@ def export(
         if any(folder.iterdir()) and not (overwrite and _is_export(folder)):
             why = "holds files that are not a diffwash export" if overwrite else "is not empty (use --overwrite to replace a previous export)"
             raise DiffwashError(why, file=folder)
-    parent = folder.parent if str(folder.parent) else Path(".")
-    if not parent.is_dir():
-        raise DiffwashError("output folder's parent does not exist", file=parent)
+    if not (folder.parent if str(folder.parent) else Path(".")).is_dir():
+        raise DiffwashError("output folder's parent does not exist", file=folder.parent)
 
     table = _lut.bake(params, size, kind=kind)
-    try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".part", dir=parent))
-    except OSError as e:
-        raise DiffwashError(f"cannot write here: {e.strerror}", file=parent) from None
-    try:
+    with atomic_folder(folder) as tmp:
         written = _lut.save(tmp / f"lut{_lut.FORMATS[fmt][0]}", table, fmt)
         colour = "lut-rt" if kind == "rt" else "lut"
         lut_srgb = _lut.FORMATS[fmt][1] == "srgb"
@@ -157,32 +147,4 @@ def export(
         (tmp / "scene.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
         (tmp / "viewer.html").write_text(viewer_html(scene, table, glb, params=params), encoding="utf-8")
         written += [tmp / n for n in ("uniforms.json", "mesh.glb", "scene.json", "viewer.html")]
-        os.chmod(tmp, 0o777 & ~_umask())
-        _replace_folder(tmp, folder)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return [folder / p.name for p in written]
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _replace_folder(tmp: Path, folder: Path) -> None:
-    """Rename `tmp` to `folder`; an existing `folder` is moved aside first and removed after."""
-    old = None
-    if folder.exists():
-        old = folder.with_name(f".{folder.name}.old-{os.getpid()}")
-        folder.rename(old)
-    try:
-        os.replace(tmp, folder)
-    except OSError as e:
-        if old is not None:
-            with contextlib.suppress(OSError):
-                old.rename(folder)
-        raise DiffwashError(f"cannot create the export folder: {e.strerror}", file=folder) from None
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)

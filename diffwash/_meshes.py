@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import trimesh
 
 __all__ = ["torus_knot", "uv_sphere"]
 
@@ -69,8 +70,6 @@ def torus_knot(
 
 def uv_sphere(rings: int = 32, sectors: int = 64, radius: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A closed UV sphere with exact normals: `(vertices, faces, normals)`."""
-    import trimesh
-
     m = trimesh.creation.uv_sphere(radius=radius, count=[rings, sectors])
     m.merge_vertices()
     n = m.vertices / np.linalg.norm(m.vertices, axis=1, keepdims=True)

@@ -1,11 +1,13 @@
-r"""The renderer: visibility -> barycentrics -> thicknesses -> Kubelka-Munk glazes -> image.
+r"""The renderer: rasterize -> interpolate -> shading -> Kubelka-Munk glazes -> antialias -> image.
 
-`render(scene, params)` composes the nvdiffrast-like ops of this package with
-the watercolour model of `diffwash.shading`:
+`render(scene, params)` composes the array ops of this package (after
+nvdiffrast's) with the watercolour model of `diffwash.shading`:
 
-1. `rasterize` (non-differentiable, cached): the triangle seen at each pixel.
-2. `barycentrics` (differentiable in vertices and camera): perspective-correct
-   barycentrics of the covered pixel centres.
+1. `rasterize` (`diffwash._rasterize`; not differentiable): the triangle seen
+   at each pixel, on the device; compacted to the covered pixels (`covered`).
+2. `barycentrics` and `interpolate` (`diffwash._interpolate`; differentiable in
+   vertices, attributes and camera): perspective-correct barycentrics of the
+   covered pixel centres, and attributes there.
 3. Shading, per pixel or per vertex (Smedresman's two variants):
 
    - *per-pixel*: the normal (renormalised) and the position are interpolated;
@@ -13,41 +15,101 @@ the watercolour model of `diffwash.shading`:
    - *per-vertex*: `shading.thicknesses` at the vertices (`V = normalize(eye -
      vertex)`), interpolated perspective-correctly.
 
-   In both the Kubelka-Munk glazes (`shading.glaze`) are evaluated per pixel.
-   Where back faces are drawn (open meshes), a back-facing triangle is shaded
-   with its normals turned towards the eye (OpenGL's two-sided lighting).
+   In both the Kubelka-Munk glazes (`shading.glaze`, `diffwash.km`) are
+   evaluated per pixel. Where back faces are drawn (open meshes), a
+   back-facing triangle is shaded with its normals turned towards the eye
+   (OpenGL's two-sided lighting).
 4. Uncovered pixels show the bare paper.
-5. Optionally `antialias` (differentiable): silhouette edges blend neighbouring
-   pixels by the edge's analytic position, giving gradients with respect to
-   vertex positions and camera.
+5. Optionally `antialias` (`diffwash._antialias`; differentiable): silhouette
+   edges blend neighbouring pixels by the edge's analytic position, giving
+   gradients with respect to vertex positions and camera.
 
-Only covered pixels are shaded (a compacted list, padded to a bucket size), so
-the cost follows the object's area on screen, not the image's.
+Steps 1 and the choice of silhouette pairs make up a `Visibility`: computed on
+the device, reused while the geometry, the camera and the size stay fixed
+(passed in, or cached by the arrays' identity — JAX arrays — or content —
+NumPy arrays — never by copying device arrays to the host). Only covered pixels
+are shaded (a compacted list, padded to a bucket size), so the cost follows the
+object's area on screen, not the image's.
 """
 
 from __future__ import annotations
 
-import collections
+import contextlib
+import dataclasses
 import functools
-import zlib
-from typing import Any
+from collections.abc import Iterator
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 from . import shading
-from ._barycentric import barycentrics
-from ._interpolate import interpolate
-from ._raster import Visibility, clip_positions, rasterize
-from .pigments import Pigment
+from ._antialias import Silhouettes, silhouettes
+from ._antialias import antialias as antialias_image
+from ._cache import LRU
+from ._camera import Camera
+from ._interpolate import barycentrics, interpolate
+from ._rasterize import clip_positions, covered, is_concrete, rasterize as rasterize_op
 
-__all__ = ["render", "render_rgba", "render_thicknesses", "clear_visibility_cache"]
+__all__ = [
+    "Visibility",
+    "Surface",
+    "SHADING_MODES",
+    "rasterize",
+    "visibility",
+    "render",
+    "render_rgba",
+    "render_thicknesses",
+    "render_views",
+    "render_strips",
+    "surface",
+    "surface_thicknesses",
+    "clear_visibility_cache",
+]
 
-_CACHE_SIZE = 4
-_cache: collections.OrderedDict[tuple, Visibility] = collections.OrderedDict()
+#: Where the thicknesses are computed: at every pixel, or at the vertices and interpolated.
+SHADING_MODES = ("per-pixel", "per-vertex")
+
+_cache = LRU(4)
+
+
+class Visibility(eqx.Module):
+    """What each pixel sees: the rasterizer's output, ready for shading.
+
+    Non-differentiable and reusable while the geometry, the camera and the
+    image size stay fixed.
+
+    **Fields:**
+
+    - `tri_id`: (H, W) int32, the triangle seen at each pixel centre (an index
+      into `mesh.faces`), -1 where no triangle covers it.
+    - `depth`: (H, W), eye-space depth of the visible surface (distance
+      along the view axis), `inf` where uncovered.
+    - `pixels`: (P,) int32, row-major indices of the covered pixels, padded to a
+      bucket size with `H * W` (an index past the image).
+    - `pixel_tri`: (P,) int32, the triangle at each of `pixels` (padding repeats
+      a real covered pixel's triangle, so padded entries shade something valid).
+    - `silhouettes`: the antialiasing work items (`diffwash._antialias.Silhouettes`),
+      or None when not prepared.
+    - `complete`: False when the rasterizer's fragment budget was too small.
+    - `width`, `height`: image size in pixels.
+    """
+
+    tri_id: Int[Array, "H W"]
+    depth: Float[Array, "H W"]
+    pixels: Int[Array, " P"]
+    pixel_tri: Int[Array, " P"]
+    silhouettes: Silhouettes | None = None
+    complete: Bool[ArrayLike, ""] = True
+    width: int = eqx.field(static=True, default=0)
+    height: int = eqx.field(static=True, default=0)
+
+    @property
+    def coverage(self) -> Bool[Array, "H W"]:
+        """(H, W) bool: which pixel centres some triangle covers."""
+        return self.tri_id >= 0
 
 
 def clear_visibility_cache() -> None:
@@ -55,94 +117,120 @@ def clear_visibility_cache() -> None:
     _cache.clear()
 
 
-def _is_concrete(tree: Any) -> bool:
-    return not any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(tree))
+@functools.partial(jax.jit, static_argnames=("aspect",))
+def _clip(vertices, camera, aspect):
+    """Clip-space vertices, compiled (no op-by-op dispatch when called on concrete arrays)."""
+    return clip_positions(vertices, camera.view_projection(aspect))
 
 
-def _array_key(a: Any) -> tuple:
-    a = np.ascontiguousarray(np.asarray(a))
-    return (a.shape, a.dtype.str, zlib.crc32(a.view(np.uint8).reshape(-1)))
+def visibility(
+    vertices: Float[ArrayLike, "V 3"],
+    faces: Int[ArrayLike, "F 3"],
+    camera: Camera,
+    *,
+    width: int,
+    height: int,
+    cull_backfaces: bool,
+    antialias: bool = False,
+    capacity: int | None = None,
+    topology: tuple[Array, Array] | None = None,
+) -> Visibility:
+    """The `Visibility` of a mesh seen by a camera: rasterize, compact, and (optionally) find silhouettes.
 
-
-def _scene_key(scene: Any) -> tuple:
-    """What visibility depends on: size, back-face mode, vertex and face contents, camera."""
-    cam = scene.camera
-    camera = tuple(np.asarray(getattr(cam, f), np.float64).tobytes() for f in ("eye", "target", "up", "fov_y", "near", "far"))
-    return (
-        scene.width,
-        scene.height,
-        scene.cull_backfaces,
-        _array_key(scene.mesh.vertices),
-        _array_key(scene.mesh.faces),
-        camera,
+    Runs on the device; under `jax.jit` or `jax.vmap` (geometry or camera
+    traced) the compacted lists have their largest sizes (every pixel; two
+    pairs per pixel) and the rasterizer its default fragment budget
+    (`capacity`). Pass `topology` (`diffwash.ops.edge_topology(faces)`) for
+    antialiasing when `faces` is traced.
+    """
+    clip = _clip(vertices, camera, width / height)
+    raster = rasterize_op(clip, faces, (height, width), cull_backfaces=cull_backfaces, capacity=capacity)
+    pixels, pixel_tri = covered(raster.tri_id)
+    sil = None
+    if antialias:
+        sil = silhouettes(clip, faces, raster.tri_id, raster.depth, cull_backfaces=cull_backfaces, topology=topology)
+    return Visibility(
+        tri_id=raster.tri_id,
+        depth=raster.depth,
+        pixels=pixels,
+        pixel_tri=pixel_tri,
+        silhouettes=sil,
+        complete=raster.complete,
+        width=width,
+        height=height,
     )
 
 
-def _geometry(scene: Any) -> tuple:
-    return (scene.mesh.vertices, scene.mesh.faces, scene.camera)
+def _scene_visibility(scene, *, antialias: bool) -> Visibility:
+    if is_concrete(_geometry(scene)):
+        # Concrete geometry inside a traced function (a jitted loss closing over the scene): compute the
+        # visibility now, on the values, rather than staging it into the caller's trace.
+        with jax.ensure_compile_time_eval():
+            return _concrete_visibility(scene, antialias=antialias)
+    return _concrete_visibility(scene, antialias=antialias)
 
 
-def _visibility(scene: Any, visibility: Visibility | None, antialias: bool) -> Visibility:
-    """The scene's visibility: given, cached, or computed (on the host, or by a callback when traced)."""
-    if visibility is not None:
-        if (visibility.width, visibility.height) != (scene.width, scene.height):
-            raise ValueError(
-                f"visibility is for a {visibility.width}x{visibility.height} image, "
-                f"the scene is {scene.width}x{scene.height}"
-            )
-        if antialias and visibility.silhouettes is None:
-            from ._antialias import prepare
-
-            visibility = prepare(scene, visibility)
-        return visibility
-    if not _is_concrete(_geometry(scene)):
-        from ._antialias import traced_visibility
-
-        return traced_visibility(scene, antialias)
-    key = _scene_key(scene)
-    vis = _cache.get(key)
-    if vis is None:
-        vis = rasterize(scene, antialias=antialias)
-    elif antialias and vis.silhouettes is None:
-        from ._antialias import prepare
-
-        vis = prepare(scene, vis)
-    _cache[key] = vis
-    _cache.move_to_end(key)
-    while len(_cache) > _CACHE_SIZE:
-        _cache.popitem(last=False)
+def _concrete_visibility(scene, *, antialias: bool) -> Visibility:
+    vis = visibility(
+        scene.mesh.vertices,
+        scene.mesh.faces,
+        scene.camera,
+        width=scene.width,
+        height=scene.height,
+        cull_backfaces=scene.cull_backfaces,
+        antialias=antialias,
+    )
+    if is_concrete(vis) and not bool(vis.complete):  # pragma: no cover - the exact budget is always enough
+        raise RuntimeError("the rasterizer's fragment budget was too small")
     return vis
 
 
-def _int32(a: Any) -> Any:
-    return a.astype(np.int32, copy=False) if isinstance(a, np.ndarray) else jnp.asarray(a, jnp.int32)
+def rasterize(scene, *, antialias: bool = False) -> Visibility:
+    """Which triangle each pixel of `scene`'s image sees, on the device.
 
+    **Arguments:**
 
-def _number(x: Any) -> Any:
-    """A Python number as the float64 NumPy scalar a scene file gives (JIT sees one type, not a weak one)."""
-    return np.float64(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else x
+    - `scene`: a `Scene` (its mesh, camera, size and back-face mode are used).
+      Works with concrete and traced geometry alike (under `jax.jit`, the
+      lists have their largest sizes).
+    - `antialias`: also prepare the silhouette work items that
+      `render(..., antialias=True)` needs.
 
+    **Returns:**
 
-def _canonical_params(params: shading.Params) -> shading.Params:
-    """The same leaves without names and other static metadata (one compiled kernel for all pigments).
-
-    Python numbers become NumPy float64 scalars, as loaded scenes hold: `replace(params, gain=0.3)`
-    reuses the compiled kernel instead of compiling another for a weakly typed (or integer) leaf.
+    A `Visibility`, reusable while geometry, camera and size stay fixed.
     """
-    params = jax.tree.map(_number, params)
-    return shading.Params(
-        wash=Pigment(K=params.wash.K, S=params.wash.S),
-        unlit=Pigment(K=params.unlit.K, S=params.unlit.S),
-        paper=params.paper,
-        light=params.light,
-        k_wash=params.k_wash,
-        k_specular=params.k_specular,
-        shininess=params.shininess,
-        k_unlit=params.k_unlit,
-        gain=params.gain,
-        bias=params.bias,
-        wash_reduction=params.wash_reduction,
-    )
+    return _scene_visibility(scene, antialias=antialias)
+
+
+def _geometry(scene) -> tuple:
+    return (scene.mesh.vertices, scene.mesh.faces, scene.camera)
+
+
+def _with_silhouettes(scene, vis: Visibility) -> Visibility:
+    """`vis` with its antialiasing work items (computed now when the scene and `vis` are concrete)."""
+    with jax.ensure_compile_time_eval() if is_concrete(_geometry(scene), vis) else contextlib.nullcontext():
+        clip = _clip(scene.mesh.vertices, scene.camera, scene.width / scene.height)
+        sil = silhouettes(clip, scene.mesh.faces, vis.tri_id, vis.depth, cull_backfaces=scene.cull_backfaces)
+    return eqx.tree_at(lambda v: v.silhouettes, vis, sil, is_leaf=lambda x: x is None)
+
+
+def _visibility_for(scene, given: Visibility | None, antialias: bool) -> Visibility:
+    """The scene's visibility: given, cached (concrete geometry), or computed on the device."""
+    if given is not None:
+        if (given.width, given.height) != (scene.width, scene.height):
+            raise ValueError(
+                f"visibility is for a {given.width}x{given.height} image, the scene is {scene.width}x{scene.height}"
+            )
+        return _with_silhouettes(scene, given) if antialias and given.silhouettes is None else given
+    if not is_concrete(_geometry(scene)):
+        return _scene_visibility(scene, antialias=antialias)
+    extra = (scene.width, scene.height, scene.cull_backfaces)
+    vis = _cache.get(_geometry(scene), lambda: _scene_visibility(scene, antialias=antialias), extra=extra)
+    if antialias and vis.silhouettes is None:
+        vis = _with_silhouettes(scene, vis)
+        _cache.put(_geometry(scene), vis, extra=extra)
+    return vis
 
 
 class Surface(eqx.Module):
@@ -155,14 +243,14 @@ class Surface(eqx.Module):
     fitters compute it once and shade it at every step.
     """
 
-    N: Any = None
-    V: Any = None
-    vertex_N: Any = None
-    vertex_V: Any = None
-    faces: Any = None
-    tri: Any = None
-    bary: Any = None
-    flip: Any = None
+    N: Float[Array, "P 3"] | None = None
+    V: Float[Array, "P 3"] | None = None
+    vertex_N: Float[Array, "Vn 3"] | None = None
+    vertex_V: Float[Array, "Vn 3"] | None = None
+    faces: Int[Array, "F 3"] | None = None
+    tri: Int[Array, " P"] | None = None
+    bary: Float[Array, "P 3"] | None = None
+    flip: Bool[Array, " P"] | None = None
     mode: str = eqx.field(static=True, default="per-pixel")
 
 
@@ -215,22 +303,25 @@ def _render_kernel(vertices, faces, normals, camera, params, vis, both, *, width
     """(H, W, 4): linear RGB and coverage."""
     rgb, clip = _shade(vertices, faces, normals, camera, params, vis, both, width=width, height=height, mode=mode)
     n = width * height
-    paper = jnp.broadcast_to(jnp.asarray(params.paper, rgb.dtype), (n, 3))
+    paper = jnp.broadcast_to(jnp.asarray(params.paper, rgb.dtype), (n, rgb.shape[-1]))
     image = paper.at[vis.pixels].set(rgb, mode="drop", unique_indices=True)
     cover = jnp.zeros((n, 1), rgb.dtype).at[vis.pixels].set(1, mode="drop", unique_indices=True)
     image = jnp.concatenate([image, cover], axis=1)
     if antialias:
-        from ._antialias import antialias as _antialias
+        image = antialias_image(image, clip, faces, vis.silhouettes, width, height)
+    return image.reshape(height, width, -1)
 
-        image = _antialias(image, clip, faces, vis.silhouettes, width, height)
-    return image.reshape(height, width, 4)
+
+
+def _int32(a):
+    return a.astype(np.int32, copy=False) if isinstance(a, np.ndarray) else jnp.asarray(a, jnp.int32)
 
 
 def _kernel_args(scene, params, vis) -> tuple:
     """The kernels' traced arguments: geometry, camera, canonical params, visibility, back faces drawn."""
     mesh = scene.mesh
     both = np.bool_(not scene.cull_backfaces)
-    return mesh.vertices, _int32(mesh.faces), mesh.normals, scene.camera, _canonical_params(params), vis, both
+    return mesh.vertices, _int32(mesh.faces), mesh.normals, scene.camera, shading.canonical(params), vis, both
 
 
 def _kernel_statics(scene) -> dict:
@@ -240,14 +331,16 @@ def _kernel_statics(scene) -> dict:
 def _render(scene, params, visibility, antialias, alpha):
     if params is None:
         params = scene.params
-    vis = _visibility(scene, visibility, antialias)
+    if visibility is None and scene.width * scene.height > TILE_PIXELS and is_concrete(_geometry(scene)):
+        return jnp.concatenate([s for _, s in render_strips(scene, params, antialias=antialias, alpha=alpha)])
+    vis = _visibility_for(scene, visibility, antialias)
     rgba = _render_kernel(*_kernel_args(scene, params, vis), **_kernel_statics(scene), antialias=bool(antialias))
     # One compiled kernel serves both: the slice is free under jit, a small copy otherwise.
-    return rgba if alpha else rgba[..., :3]
+    return rgba if alpha else rgba[..., :-1]
 
 
 def render(
-    scene: Any,
+    scene,
     params: shading.Params | None = None,
     *,
     visibility: Visibility | None = None,
@@ -266,7 +359,7 @@ def render(
     - `visibility`: a `Visibility` from `rasterize(scene)` to reuse. By default
       it is computed once per geometry, camera and size and cached (for
       concrete scenes); when the geometry is traced (e.g. differentiated
-      without a given visibility) it is computed by a host callback.
+      without a given visibility) it is computed on the device in the trace.
     - `antialias`: blend pixels along silhouette edges by the edges' analytic
       positions (nvdiffrast's antialiasing), which also gives gradients with
       respect to vertex positions and the camera. Off by default: it costs
@@ -275,13 +368,16 @@ def render(
     **Returns:**
 
     (H, W, 3) linear RGB reflectance; row 0 is the top of the image.
-    Uncovered pixels show the paper (`params.paper`).
+    Uncovered pixels show the paper (`params.paper`). Images of more than
+    `TILE_PIXELS` pixels (concrete geometry, no `visibility` given) are drawn
+    in strips (`render_strips`), which bounds the memory the rasterizer and
+    the shading take.
     """
     return _render(scene, params, visibility, antialias, alpha=False)
 
 
 def render_rgba(
-    scene: Any,
+    scene,
     params: shading.Params | None = None,
     *,
     visibility: Visibility | None = None,
@@ -306,7 +402,7 @@ def _thickness_kernel(vertices, faces, normals, camera, params, vis, both, *, wi
 
 
 def render_thicknesses(
-    scene: Any,
+    scene,
     params: shading.Params | None = None,
     *,
     visibility: Visibility | None = None,
@@ -319,5 +415,130 @@ def render_thicknesses(
     """
     if params is None:
         params = scene.params
-    vis = _visibility(scene, visibility, False)
+    vis = _visibility_for(scene, visibility, False)
     return _thickness_kernel(*_kernel_args(scene, params, vis), **_kernel_statics(scene))
+
+
+def _stack_visibilities(vis: list[Visibility]) -> Visibility:
+    """Visibilities of one image size padded to common lengths and stacked on a leading axis (for `vmap`)."""
+    n = vis[0].width * vis[0].height
+
+    def pad(x: Array, size: int, fill: int) -> Array:
+        return jnp.concatenate([x, jnp.full(size - x.shape[0], fill, x.dtype)])
+
+    p = max(v.pixels.shape[0] for v in vis)
+    padded = [
+        eqx.tree_at(lambda v: (v.pixels, v.pixel_tri), v, (pad(v.pixels, p, n), pad(v.pixel_tri, p, 0))) for v in vis
+    ]
+    if all(v.silhouettes is not None for v in vis):
+        m = max(v.silhouettes.a.shape[0] for v in vis)
+        padded = [
+            eqx.tree_at(
+                lambda v: v.silhouettes,
+                v,
+                Silhouettes(*(pad(x, m, f) for x, f in zip(
+                    (v.silhouettes.a, v.silhouettes.b, v.silhouettes.tri, v.silhouettes.edge), (n, n, 0, 0)))),
+            )
+            for v in padded
+        ]  # fmt: skip
+    return jax.tree.map(lambda *x: jnp.stack([jnp.asarray(a) for a in x]), *padded)
+
+
+def render_views(
+    scene,
+    cameras: Camera | list[Camera],
+    params: shading.Params | None = None,
+    *,
+    antialias: bool = False,
+) -> Float[Array, "N H W 3"]:
+    """Render the scene from several cameras in one `jax.vmap`ped program.
+
+    **Arguments:**
+
+    - `scene`: the `Scene` (its mesh, size, shading mode and back faces).
+    - `cameras`: a list of `Camera`s, or one `Camera` whose leaves have a
+      leading axis of views.
+    - `params`: shading parameters shared by the views (default: the scene's).
+    - `antialias`: as `render`.
+
+    **Returns:**
+
+    (N, H, W, 3) linear RGB, differentiable like `render`. With concrete
+    cameras each view's visibility is computed (and cached) as `render` does;
+    with traced ones it is computed in the trace, on the device.
+    """
+    if isinstance(cameras, (list, tuple)):
+        cameras = jax.tree.map(lambda *x: jnp.stack([jnp.asarray(a) for a in x]), *cameras)
+    params = scene.params if params is None else params
+    n_views = jax.tree_util.tree_leaves(cameras)[0].shape[0]
+    if not is_concrete(cameras, scene.mesh.vertices):
+        return jax.vmap(lambda c: render(dataclasses.replace(scene, camera=c), params, antialias=antialias))(cameras)
+    views = [dataclasses.replace(scene, camera=jax.tree.map(lambda x: x[i], cameras)) for i in range(n_views)]
+    vis = _stack_visibilities([_visibility_for(v, None, antialias) for v in views])
+    vertices, faces, normals, _, p, _, both = _kernel_args(scene, params, vis)
+    kernel = functools.partial(_render_kernel, **_kernel_statics(scene), antialias=bool(antialias))
+    images = jax.vmap(kernel, in_axes=(None, None, None, 0, None, 0, None))(vertices, faces, normals, cameras, p, vis, both)
+    return images[..., :-1]
+
+
+#: Images of more pixels than this render in horizontal strips, so that memory stays bounded.
+TILE_PIXELS = 1 << 22
+
+
+class _Window(eqx.Module):
+    """A camera seen through a window of its image: rows `[start, start + rows)` of `height` become a whole image.
+
+    Duck-types `Camera` for the renderer: `eye` is the camera's, and
+    `view_projection` maps the window onto clip space (`y' = s y + t w`), so
+    a strip renders exactly the pixels it covers in the full image.
+    """
+
+    camera: Camera
+    crop: Float[Array, "4 4"]
+    aspect: float = eqx.field(static=True)
+
+    @property
+    def eye(self):
+        return self.camera.eye
+
+    def view_projection(self, aspect: float) -> Float[Array, "4 4"]:
+        return self.crop @ self.camera.view_projection(self.aspect)
+
+
+def _window(scene, start: int, rows: int):
+    s = scene.height / rows
+    crop = np.eye(4)
+    crop[1, 1], crop[1, 3] = s, 1 - s + 2 * start / rows
+    cam = _Window(camera=scene.camera, crop=jnp.asarray(crop, jnp.result_type(float)), aspect=scene.width / scene.height)
+    return dataclasses.replace(scene, camera=cam, height=rows)
+
+
+def render_strips(
+    scene,
+    params: shading.Params | None = None,
+    *,
+    antialias: bool = False,
+    alpha: bool = False,
+    rows: int | None = None,
+) -> Iterator[tuple[int, Float[Array, "h W C"]]]:
+    """Render the image in horizontal strips, one at a time: bounded memory for any image size.
+
+    **Arguments:** as `render`; `alpha` adds the coverage channel; `rows`: rows
+    per strip (default: about `TILE_PIXELS` pixels per strip).
+
+    **Yields:**
+
+    `(first_row, strip)`: consecutive strips, together the image `render`
+    (or `render_rgba`) draws. Each strip is rendered with its own visibility,
+    from a window of the camera's image with a one-row margin where
+    antialiasing needs the neighbours.
+    """
+    rows = max(1, TILE_PIXELS // scene.width) if rows is None else int(rows)
+    halo = 1 if antialias else 0
+    window = min(scene.height, rows + 2 * halo)
+    for r0 in range(0, scene.height, rows):
+        r1 = min(r0 + rows, scene.height)
+        start = min(max(r0 - halo, 0), scene.height - window)
+        tile = _window(scene, start, window)
+        vis = _concrete_visibility(tile, antialias=antialias)
+        yield r0, _render(tile, params, vis, antialias, alpha)[r0 - start : r1 - start]

@@ -20,6 +20,7 @@ Required: `mesh`, `camera.eye`, `camera.target`, `light.direction`, `wash`,
 from __future__ import annotations
 
 import difflib
+import logging
 import math
 import os
 from pathlib import Path
@@ -27,14 +28,15 @@ from typing import Any
 
 import equinox as eqx
 import numpy as np
+import trimesh
 
 from . import pigments as _pigments
 from ._camera import Camera
 from ._errors import DiffwashError
-from ._io import finite_number, read_json, write_json
+from ._io import FLOAT32_MAX, check_float32, finite_number, read_json, write_json
 from .shading import DEFAULT_CONSTANTS, DEFAULT_PAPER, Params
 
-__all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "MAX_IMAGE_SIDE"]
+__all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "referenced_files", "MAX_IMAGE_SIDE"]
 
 #: Largest image side the renderer accepts (pixels).
 MAX_IMAGE_SIDE = 8192
@@ -103,6 +105,7 @@ def _number(obj: dict, key: str, file: Any, field: str, *, default: Any = None, 
     v = obj[key]
     if not finite_number(v):
         raise _fail(f"must be a finite number, got {v!r}", file, field)
+    v = check_float32(v, file=file, field=field)
     if lo is not None and (v < lo or (lo_open and v == lo)):
         raise _fail(f"must be {'>' if lo_open else '>='} {lo}, got {v!r}", file, field)
     if hi is not None and v > hi:
@@ -118,6 +121,8 @@ def _vec3(obj: dict, key: str, file: Any, field: str, default: Any = None, nonne
     v = obj[key]
     if not isinstance(v, list) or len(v) != 3 or not all(finite_number(c) for c in v):
         raise _fail(f"must be a list of 3 finite numbers, got {v!r}", file, field)
+    for i, c in enumerate(v):
+        check_float32(c, file=file, field=f"{field}[{i}]")
     if nonneg and any(c < 0 for c in v):
         raise _fail(f"must be >= 0, got {v!r}", file, field)
     return np.asarray(v, np.float64)
@@ -148,16 +153,21 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
     Vertex normals are the file's own where it has them, else trimesh's
     area-weighted `vertex_normals`.
     """
-    import trimesh
 
     path = Path(path)
     where = file if file is not None else path
     if not path.is_file():
         raise _fail(f"mesh file not found: {path}", where, field)
+    # trimesh logs what it tries on a damaged file (tracebacks included); with no logging set up Python would print
+    # that on stderr, so give its loggers a handler that drops it while loading (set-up logging still gets it).
+    quiet = logging.NullHandler()
+    logging.getLogger("trimesh").addHandler(quiet)
     try:
         loaded = trimesh.load(path, process=False)
     except Exception as e:  # trimesh raises many kinds for unreadable files
         raise _fail(f"cannot read mesh {path}: {e}".splitlines()[0], where, field) from None
+    finally:
+        logging.getLogger("trimesh").removeHandler(quiet)
     if isinstance(loaded, trimesh.Scene) and len(loaded.graph.nodes_geometry) == 1:
         # One untransformed mesh (e.g. a GLB): take it as it is, keeping the normals its file stored
         # (Scene.dump() copies the geometry and drops them).
@@ -176,9 +186,13 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
     faces = np.asarray(loaded.faces, np.int64)
     if len(faces) == 0 or len(vertices) == 0:
         raise _fail(f"mesh {path} is empty (no triangles)", where, field)
-    if not np.all(np.isfinite(vertices)):
-        bad = int(np.argmax(~np.all(np.isfinite(vertices), axis=1)))
-        raise _fail(f"mesh {path} has non-finite vertex coordinates (vertex {bad})", where, field)
+    in_range = np.all(np.abs(vertices) <= FLOAT32_MAX, axis=1)  # False for NaN too
+    if not np.all(in_range):
+        bad = int(np.argmax(~in_range))
+        raise _fail(f"mesh {path} has non-finite vertex coordinates in float32, which diffwash computes in "
+                    f"(vertex {bad}: {vertices[bad].tolist()})", where, field)  # fmt: skip
+    if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
+        raise _fail(f"mesh {path} has faces that name vertices it does not have", where, field)
     normals = None
     if file_normals is not None and np.shape(file_normals) == vertices.shape:
         n = np.asarray(file_normals, np.float64)
@@ -268,6 +282,8 @@ def parse_scene(
         raise _fail(f"must be below 180 degrees, got {fov_y}", file, "camera.fov_y")
     view = target - eye
     dist = float(np.linalg.norm(view))
+    if not dist <= FLOAT32_MAX:
+        raise _fail(f"is {dist:g} from camera.eye: out of float32 range", file, "camera.target")
     if dist <= 1e-9 * max(1.0, float(np.linalg.norm(eye))):
         raise _fail("camera.eye and camera.target are the same point: no view direction", file, "camera.target")
     if np.linalg.norm(up) == 0 or np.linalg.norm(np.cross(view / dist, up / np.linalg.norm(up))) < 1e-6:
@@ -315,6 +331,9 @@ def parse_scene(
     for key in ("gain", "bias"):
         if not 0 < consts[key] < 1:
             raise _fail(f"must be strictly between 0 and 1, got {float(consts[key])}", file, key)
+    wash_max = float(consts["k_specular"] * consts["k_wash"])
+    if not wash_max <= FLOAT32_MAX:  # the thickest wash, the LUT's wash_max: each factor fits float32, the product not
+        raise _fail(f"k_specular x k_wash = {wash_max:g} (the thickest wash) is out of float32 range", file, "k_wash")
 
     params = Params(wash=wash, unlit=unlit, paper=paper, light=direction, **consts)
     return Scene(
@@ -394,6 +413,27 @@ def scene_to_dict(scene: Scene, params: Params | None = None, *, relative_to: st
         if isinstance(v, float) and not math.isfinite(v):
             raise DiffwashError(f"is not finite ({v}); refusing to write the scene", field=k)
     return out
+
+
+def referenced_files(path: str | os.PathLike) -> list[Path]:
+    """The files a scene file names (its mesh, its pigment files), for commands that must not overwrite them.
+
+    Best effort: a scene that cannot be read names none (`load_scene` says why).
+    """
+    try:
+        data = read_json(path)
+    except DiffwashError:
+        return []
+    if not isinstance(data, dict):
+        return []
+    base = Path(path).parent
+    found = [base / data["mesh"]] if isinstance(data.get("mesh"), str) and data["mesh"] else []
+    for key in ("wash", "unlit"):
+        spec = data.get(key)
+        ref = spec.get("pigment") if isinstance(spec, dict) else spec
+        if isinstance(ref, str) and ref and (base / ref).is_file():
+            found.append(base / ref)
+    return found
 
 
 def save_scene(path: str | os.PathLike, scene: Scene, params: Params | None = None) -> None:

@@ -12,6 +12,7 @@ constants that do not change the LUT's range.
 from __future__ import annotations
 
 import base64
+import html
 import json
 from importlib import resources
 from typing import Any
@@ -20,7 +21,8 @@ import numpy as np
 
 from ._glsl import shader_file_names, shader_sources, uniform_values
 from ._version import __version__
-from .lut import Lut, srgb_encode
+from .colorimetry import to_display
+from .lut import Lut
 
 __all__ = ["viewer_html"]
 
@@ -57,7 +59,7 @@ def viewer_html(scene: Any, lut: Lut, mesh_glb: bytes, *, params: Any = None, ti
         vert, frag = shader_sources("webgl2", mode, colour=colour, lut_srgb=True, output_srgb=True)
         vname, fname = shader_file_names(mode)
         shaders[mode] = {"vert": vert, "frag": frag, "vert_name": vname, "frag_name": fname}
-    encoded = srgb_encode(np.asarray(lut.values, np.float64))
+    encoded = to_display(np.asarray(lut.values, np.float64))
     names = ["lut"] if lut.kind == "colour" else ["lut_reflectance", "lut_transmittance"]
     textures = [
         {"uniform": name, "half_float": _b64(np.ascontiguousarray(encoded[..., 3 * i : 3 * i + 3]).astype("<f2").tobytes())}
@@ -82,14 +84,13 @@ def viewer_html(scene: Any, lut: Lut, mesh_glb: bytes, *, params: Any = None, ti
         "float_uniforms": _FLOATS,
         "vec3_uniforms": _VEC3S,
         "live_constants": _live_constants(u),
-        "background": srgb_encode(np.asarray(p.paper, np.float64)).tolist(),
+        "background": to_display(np.asarray(p.paper, np.float64)).tolist(),
         "pigments": {"wash": p.wash.name, "unlit": p.unlit.name},
         "version": __version__,
     }
     # JSON is valid JavaScript; "</" is escaped so the data cannot close the <script> element.
     blob = json.dumps(config, separators=(",", ":")).replace("</", "<\\/")
     template = (resources.files("diffwash") / "data" / "viewer.html").read_text(encoding="utf-8")
-    import html
 
     name = title if title is not None else (scene.path or "scene")
     return template.replace("__TITLE__", html.escape(str(name))).replace("__CONFIG__", blob)

@@ -3,18 +3,23 @@
 The same `Preview` (exported `glsl330` shaders, LUT texture) drawn into a window:
 left-drag orbits the camera about its target, right- or shift-drag moves the
 light, the wheel zooms, `V` toggles per-vertex / per-pixel, `R` resets, `Esc`
-closes.
+closes. glfw is an optional dependency (`pip install 'diffwash[window]'`).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+import moderngl
 import numpy as np
 
+from ._camera import Camera
 from ._errors import DiffwashError, FailureError
+from ._glsl import uniform_values
+from ._preview import Preview, has_display
+from ._render import SHADING_MODES
 
-__all__ = ["run_window"]
+__all__ = ["show"]
 
 
 def _rotate(v: np.ndarray, k: np.ndarray, t: float) -> np.ndarray:
@@ -22,7 +27,119 @@ def _rotate(v: np.ndarray, k: np.ndarray, t: float) -> np.ndarray:
     return v * np.cos(t) + np.cross(k, v) * np.sin(t) + k * np.dot(k, v) * (1 - np.cos(t))
 
 
-def run_window(
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+class _Orbit:
+    """The window's view: an eye orbiting the camera's target, a light to turn, a zoom."""
+
+    def __init__(self, scene: Any, light: Any):
+        cam = scene.camera
+        self.camera = cam
+        self.target = np.asarray(cam.target, np.float64)
+        self.up = _unit(np.asarray(cam.up, np.float64))
+        vertices = np.asarray(scene.mesh.vertices, np.float64)
+        self.centre = 0.5 * (vertices.min(0) + vertices.max(0))
+        self.radius = float(np.max(np.linalg.norm(vertices - self.centre, axis=1)))
+        self.home = (np.asarray(cam.eye, np.float64), np.asarray(light, np.float64))
+        self.eye, self.light = self.home
+        self.drag: dict[str, Any] = {}
+
+    def reset(self) -> None:
+        self.eye, self.light = self.home
+
+    def press(self, x: float, y: float, light: bool) -> None:
+        self.drag = {"x": x, "y": y, "light": light}
+
+    def release(self) -> None:
+        self.drag = {}
+
+    def move(self, x: float, y: float) -> None:
+        """Orbit the eye, or turn the light, by the mouse's motion since the last event."""
+        if not self.drag:
+            return
+        dx, dy = x - self.drag["x"], y - self.drag["y"]
+        self.drag.update(x=x, y=y)
+        if self.drag["light"]:
+            right = _unit(np.cross(self.up, self.eye - self.target))
+            self.light = _rotate(_rotate(self.light, self.up, dx * 0.01), right, dy * 0.01)
+            return
+        d = _rotate(self.eye - self.target, self.up, -dx * 0.01)
+        d2 = _rotate(d, _unit(np.cross(self.up, d)), -dy * 0.01)
+        if abs(np.dot(_unit(d2), self.up)) < 0.995:  # never over the pole (the up vector would flip)
+            d = d2
+        self.eye = self.target + d
+
+    def zoom(self, steps: float) -> None:
+        self.eye = self.target + (self.eye - self.target) * np.exp(-0.1 * steps)
+
+    def uniforms(self, base: dict, width: int, height: int) -> dict:
+        """`base` with the eye, the light and a view-projection for this viewport."""
+        cam = self.camera
+        if np.allclose(self.eye, self.home[0]):
+            near, far = float(cam.near), float(cam.far)
+        else:
+            c = float(np.linalg.norm(self.centre - self.eye))
+            far = (c + self.radius) * 1.01
+            near = max(c - self.radius, far * 1e-3) * 0.99
+        camera = Camera(eye=self.eye, target=self.target, up=self.up, fov_y=cam.fov_y, near=near, far=far)
+        vp = np.asarray(camera.view_projection(width / max(height, 1)), np.float64)
+        return {**base, "eye": self.eye.tolist(), "light_direction": self.light.tolist(), "view_projection": vp.tolist()}
+
+
+def _glfw() -> Any:
+    try:
+        import glfw  # optional: the `window` extra
+    except ImportError:
+        raise DiffwashError(
+            "--window needs the glfw package (pip install glfw, or pip install 'diffwash[window]')", field="--window"
+        ) from None
+    return glfw
+
+
+def _open(glfw: Any, width: int, height: int, title: str) -> Any:
+    """A window with an OpenGL 3.3 core context, made current."""
+    glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
+    glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
+    glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+    glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+    window = glfw.create_window(width, height, title, None, None)
+    if not window:
+        raise FailureError("cannot open a window with an OpenGL 3.3 core context")
+    glfw.make_context_current(window)
+    glfw.swap_interval(1)
+    return window
+
+
+def _bind(glfw: Any, window: Any, orbit: _Orbit, state: dict, title: str) -> None:
+    """Mouse and keyboard: orbit, light, zoom, `V` (shading mode), `R` (reset), `Esc`."""
+
+    def on_button(win, button, action, mods):
+        if action == glfw.PRESS:
+            x, y = glfw.get_cursor_pos(win)
+            orbit.press(x, y, light=button == glfw.MOUSE_BUTTON_RIGHT or bool(mods & glfw.MOD_SHIFT))
+        elif action == glfw.RELEASE:
+            orbit.release()
+
+    def on_key(win, key, scancode, action, mods):
+        if action != glfw.PRESS:
+            return
+        if key == glfw.KEY_ESCAPE:
+            glfw.set_window_should_close(win, True)
+        elif key == glfw.KEY_V:
+            state["shading"] = SHADING_MODES[1 - SHADING_MODES.index(state["shading"])]
+            glfw.set_window_title(win, f"{title} ({state['shading']})")
+        elif key == glfw.KEY_R:
+            orbit.reset()
+
+    glfw.set_mouse_button_callback(window, on_button)
+    glfw.set_cursor_pos_callback(window, lambda win, x, y: orbit.move(x, y))
+    glfw.set_scroll_callback(window, lambda win, dx, dy: orbit.zoom(dy))
+    glfw.set_key_callback(window, on_key)
+
+
+def show(
     scene: Any,
     params: Any = None,
     *,
@@ -31,116 +148,38 @@ def run_window(
     frames: int | None = None,
     keep_last: bool = False,
 ) -> np.ndarray | None:
-    """Show `scene` in a window until it is closed (or for `frames` frames); return the last frame if `keep_last`."""
-    try:
-        import glfw
-    except ImportError:
-        raise DiffwashError(
-            "--window needs the glfw package (pip install glfw, or pip install 'diffwash[window]')", field="--window"
-        ) from None
-    import moderngl
+    """Open a window showing the scene through the exported shaders; orbit with the mouse.
 
-    from ._camera import Camera
-    from ._glsl import uniform_values
-    from .preview import Preview
+    Left-drag orbits the camera around its target, right-drag (or shift-drag)
+    moves the light, the wheel zooms, `V` toggles per-vertex/per-pixel, `R`
+    resets, `Esc` closes. `frames` closes the window after that many frames
+    (for scripted use). With `keep_last` it returns the last frame shown
+    (`(H, W, 3)` display sRGB, row 0 at the top).
 
+    Needs a display and the `glfw` package (`pip install 'diffwash[window]'`).
+    """
+    if not has_display():
+        raise DiffwashError("--window needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set); "
+                            "use -o FRAME.png to render headless", field="--window")  # fmt: skip
+    glfw = _glfw()
     if not glfw.init():
         raise FailureError("cannot open a window: glfw could not initialise (is the display reachable?)")
     try:
-        glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
-        glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
-        glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
-        glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
         title = f"diffwash preview: {scene.path or 'scene'}"
-        window = glfw.create_window(scene.width, scene.height, title, None, None)
-        if not window:
-            raise FailureError("cannot open a window with an OpenGL 3.3 core context")
-        glfw.make_context_current(window)
-        glfw.swap_interval(1)
+        window = _open(glfw, scene.width, scene.height, title)
         ctx = moderngl.create_context()
-        modes = {}
-        current = {"shading": scene.shading if shading is None else shading}
-
-        def preview_for(mode: str) -> Preview:
-            if mode not in modes:
-                modes[mode] = Preview(ctx, scene, params, lut=lut, shading=mode)
-            return modes[mode]
-
-        p0 = preview_for(current["shading"])
-        base = uniform_values(scene, p0.params, lut=p0.lut)
-        cam = scene.camera
-        target = np.asarray(cam.target, np.float64)
-        up = np.asarray(cam.up, np.float64)
-        up = up / np.linalg.norm(up)
-        view = {"eye": np.asarray(cam.eye, np.float64), "light": np.asarray(base["light_direction"], np.float64)}
-        vertices = np.asarray(scene.mesh.vertices, np.float64)
-        centre = 0.5 * (vertices.min(0) + vertices.max(0))
-        radius = float(np.max(np.linalg.norm(vertices - centre, axis=1)))
-        drag: dict[str, Any] = {}
-
-        def uniforms(width: int, height: int) -> dict:
-            eye = view["eye"]
-            if np.allclose(eye, np.asarray(cam.eye, np.float64)):
-                near, far = float(cam.near), float(cam.far)
-            else:
-                c = float(np.linalg.norm(centre - eye))
-                far = (c + radius) * 1.01
-                near = max(c - radius, far * 1e-3) * 0.99
-            camera = Camera(eye=eye, target=target, up=up, fov_y=cam.fov_y, near=near, far=far)
-            vp = np.asarray(camera.view_projection(width / max(height, 1)), np.float64)
-            return {**base, "eye": eye.tolist(), "light_direction": view["light"].tolist(), "view_projection": vp.tolist()}
-
-        def on_button(win, button, action, mods):
-            if action == glfw.PRESS:
-                x, y = glfw.get_cursor_pos(win)
-                drag.update(x=x, y=y, light=button == glfw.MOUSE_BUTTON_RIGHT or bool(mods & glfw.MOD_SHIFT))
-            elif action == glfw.RELEASE:
-                drag.clear()
-
-        def on_move(win, x, y):
-            if not drag:
-                return
-            dx, dy = x - drag["x"], y - drag["y"]
-            drag.update(x=x, y=y)
-            if drag["light"]:
-                right = np.cross(up, view["eye"] - target)
-                right /= np.linalg.norm(right)
-                view["light"] = _rotate(_rotate(view["light"], up, dx * 0.01), right, dy * 0.01)
-            else:
-                d = _rotate(view["eye"] - target, up, -dx * 0.01)
-                right = np.cross(up, d)
-                right /= np.linalg.norm(right)
-                d2 = _rotate(d, right, -dy * 0.01)
-                if abs(np.dot(d2 / np.linalg.norm(d2), up)) < 0.995:
-                    d = d2
-                view["eye"] = target + d
-
-        def on_scroll(win, dx, dy):
-            d = view["eye"] - target
-            view["eye"] = target + d * np.exp(-0.1 * dy)
-
-        def on_key(win, key, scancode, action, mods):
-            if action != glfw.PRESS:
-                return
-            if key == glfw.KEY_ESCAPE:
-                glfw.set_window_should_close(win, True)
-            elif key == glfw.KEY_V:
-                current["shading"] = "per-vertex" if current["shading"] == "per-pixel" else "per-pixel"
-                glfw.set_window_title(win, f"{title} ({current['shading']})")
-            elif key == glfw.KEY_R:
-                view["eye"] = np.asarray(cam.eye, np.float64)
-                view["light"] = np.asarray(base["light_direction"], np.float64)
-
-        glfw.set_mouse_button_callback(window, on_button)
-        glfw.set_cursor_pos_callback(window, on_move)
-        glfw.set_scroll_callback(window, on_scroll)
-        glfw.set_key_callback(window, on_key)
-        count = 0
-        last = None
+        state = {"shading": scene.shading if shading is None else shading}
+        previews: dict[str, Preview] = {}
+        first = previews.setdefault(state["shading"], Preview(ctx, scene, params, lut=lut, shading=state["shading"]))
+        base = uniform_values(scene, first.params, lut=first.lut)
+        orbit = _Orbit(scene, base["light_direction"])
+        _bind(glfw, window, orbit, state, title)
+        count, last = 0, None
         while not glfw.window_should_close(window):
             width, height = glfw.get_framebuffer_size(window)
-            p = preview_for(current["shading"])
-            p.set_uniforms(uniforms(width, height))
+            mode = state["shading"]
+            p = previews.get(mode) or previews.setdefault(mode, Preview(ctx, scene, params, lut=lut, shading=mode))
+            p.set_uniforms(orbit.uniforms(base, width, height))
             ctx.viewport = (0, 0, width, height)
             p.draw(ctx.screen)
             count += 1
@@ -151,7 +190,7 @@ def run_window(
                 break
             glfw.swap_buffers(window)
             glfw.poll_events()
-        for p in modes.values():
+        for p in previews.values():
             p.release()
         return last
     finally:

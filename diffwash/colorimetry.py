@@ -2,8 +2,10 @@ r"""Differentiable colorimetry in JAX: sRGB, CIE XYZ, CIELAB and CIEDE2000.
 
 Everything here is what colour-science computes (and the tests hold it to
 colour-science within 1e-6), written in `jax.numpy` so that losses in CIELAB or
-CIEDE2000 can be differentiated. Colour work that needs no gradient (plots,
-reports) can use colour-science directly.
+CIEDE2000 can be differentiated. Colour work that needs no gradient (image
+files, textures, plots, reports) goes through colour-science itself:
+`to_display` and `from_display`. The sRGB curve of the exported shaders is
+generated from `srgb_encode` and `srgb_decode` (`diffwash._xp`).
 
 Conventions: linear sRGB and XYZ on the scale where the white (D65) has `Y = 1`;
 CIELAB on its usual scale (`L*` in [0, 100]); the reference white of CIELAB is
@@ -25,13 +27,18 @@ achromatic axis and identical colour pairs ("double where" forms).
 
 from __future__ import annotations
 
+import colour
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from ._xp import namespace, shader_function
+
 __all__ = [
     "srgb_encode",
     "srgb_decode",
+    "to_display",
+    "from_display",
     "linear_srgb_to_xyz",
     "xyz_to_linear_srgb",
     "xyz_to_lab",
@@ -63,6 +70,10 @@ SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0
 #: exact inverse of `SRGB_TO_XYZ`: round trips agree to about 1e-4).
 XYZ_TO_SRGB = np.array([[3.2406, -1.5372, -0.4986], [-0.9689, 1.8758, 0.0415], [0.0557, -0.2040, 1.0570]])
 
+#: Where the sRGB transfer function leaves its linear segment: linear value, and encoded value.
+SRGB_LINEAR_BREAK = 0.0031308
+SRGB_ENCODED_BREAK = 0.04045
+
 _LAB_EPSILON = 216 / 24389  # (6/29)^3
 _LAB_KAPPA = 24389 / 27
 
@@ -77,8 +88,9 @@ def _matmul3(M: np.ndarray, v: Array) -> Array:
 
 def _safe_pow(x: Array, p: float) -> Array:
     """x**p for x > 0, else 0; gradient finite (0) where x <= 0."""
+    xp = namespace(x)
     ok = x > 0
-    return jnp.where(ok, jnp.where(ok, x, 1) ** p, 0)
+    return xp.where(ok, xp.power(xp.where(ok, x, 1), p), 0)
 
 
 def _safe_sqrt(x: Array) -> Array:
@@ -86,6 +98,7 @@ def _safe_sqrt(x: Array) -> Array:
     return jnp.where(ok, jnp.sqrt(jnp.where(ok, x, 1)), 0)
 
 
+@shader_function("srgb_encode", [("rgb", "vec3")], "vec3")
 def srgb_encode(rgb: Float[ArrayLike, "*b 3"]) -> Float[Array, "*b 3"]:
     r"""Linear sRGB to non-linear (display) sRGB, the IEC 61966-2-1 transfer function.
 
@@ -94,16 +107,38 @@ def srgb_encode(rgb: Float[ArrayLike, "*b 3"]) -> Float[Array, "*b 3"]:
     Not clipped: values outside [0, 1] follow the two branches (negative values
     stay on the linear segment).
     """
-    L = _float(rgb)
-    hi = L > 0.0031308
-    return jnp.where(hi, 1.055 * _safe_pow(L, 1 / 2.4) - 0.055, 12.92 * L)
+    xp = namespace(rgb)
+    (L,) = xp.asfloat(rgb)
+    hi = L > SRGB_LINEAR_BREAK
+    return xp.where(hi, 1.055 * _safe_pow(L, 1 / 2.4) - 0.055, 12.92 * L)
 
 
+@shader_function("srgb_decode", [("rgb", "vec3")], "vec3")
 def srgb_decode(rgb: Float[ArrayLike, "*b 3"]) -> Float[Array, "*b 3"]:
     """Non-linear (display) sRGB to linear sRGB, the inverse of `srgb_encode`."""
-    V = _float(rgb)
-    hi = V > 0.04045
-    return jnp.where(hi, _safe_pow((V + 0.055) / 1.055, 2.4), V / 12.92)
+    xp = namespace(rgb)
+    (V,) = xp.asfloat(rgb)
+    hi = V > SRGB_ENCODED_BREAK
+    return xp.where(hi, _safe_pow((V + 0.055) / 1.055, 2.4), V / 12.92)
+
+
+def to_display(linear: Float[ArrayLike, "*b"]) -> np.ndarray:
+    """Linear sRGB to display sRGB in [0, 1], clipped to [0, 1] first (NumPy float64; no gradient).
+
+    For image files, textures and figures: colour-science's IEC 61966-2-1
+    inverse EOTF (`colour.models.eotf_inverse_sRGB`). NaN becomes 0.
+    """
+    x = np.clip(np.nan_to_num(np.asarray(linear, np.float64), nan=0.0), 0, 1)
+    return np.asarray(colour.models.eotf_inverse_sRGB(x), np.float64)
+
+
+def from_display(encoded: Float[ArrayLike, "*b"]) -> np.ndarray:
+    """Display sRGB in [0, 1] (clipped to it first) to linear sRGB (NumPy float64; no gradient).
+
+    colour-science's IEC 61966-2-1 EOTF (`colour.models.eotf_sRGB`).
+    """
+    v = np.clip(np.asarray(encoded, np.float64), 0, 1)
+    return np.asarray(colour.models.eotf_sRGB(v), np.float64)
 
 
 def linear_srgb_to_xyz(rgb: Float[ArrayLike, "*b 3"]) -> Float[Array, "*b 3"]:

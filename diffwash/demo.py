@@ -27,12 +27,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.figure import Figure  # not pyplot: the caller's backend (a notebook's) stays as it is
 
+from . import fit, lut, preview
 from ._errors import DiffwashError
-from ._io import read_json, write_json, write_png
+from ._export import export
+from ._io import atomic_folder, read_image, read_json, save_figure, write_json, write_png
+from ._render import render
+from ._scene import load_scene
+from ._version import __version__
+from .colorimetry import to_display
 
-__all__ = ["DemoResult", "run", "DATA", "FIT"]
+__all__ = ["DemoResult", "run", "DATA", "FIT", "MARKER"]
 
+#: The file by which the demo recognises a folder it wrote (and may replace).
+MARKER = ".diffwash-demo"
 #: The shading constants the demo fits to the target image.
 FIT = ("gain", "bias", "k_wash", "k_unlit", "shininess", "wash_reduction")
 
@@ -82,27 +91,30 @@ class _Steps:
         return dt
 
 
-def run(folder: str | os.PathLike = "diffwash-demo", *, progress: bool | Callable[[str], None] = True) -> DemoResult:
-    """Run the demo, writing everything into `folder` (created; files in it are replaced).
+def run(
+    folder: str | os.PathLike = "diffwash-demo",
+    *,
+    progress: bool | Callable[[str], None] = True,
+    force: bool = False,
+) -> DemoResult:
+    """Run the demo, writing everything into `folder`, whole or not at all.
+
+    Everything is written into a temporary folder beside `folder`, renamed to
+    `folder` at the end: a failure (a full disk) leaves nothing behind.
 
     **Arguments:**
 
-    - `folder`: the output folder.
+    - `folder`: the output folder. It must not exist, be empty, or hold a
+      previous demo (recognised by its `MARKER` file), which is replaced.
     - `progress`: print a line per step (True), stay quiet (False), or call
       `progress(line)`.
+    - `force`: write into a folder that holds other files too (the demo's
+      files replace those of the same names; the others are left alone).
 
     **Returns:**
 
     A `DemoResult`.
     """
-    from . import fit, lut, preview
-    from ._export import export
-    from ._io import read_image
-    from ._render import render
-    from ._scene import load_scene
-    from .colorimetry import srgb_encode
-    from .fit import save_image_report, save_swatch_report
-
     out: Callable[[str], None] | None
     if progress is True:
         out = lambda s: print(s, flush=True)  # noqa: E731
@@ -111,14 +123,39 @@ def run(folder: str | os.PathLike = "diffwash-demo", *, progress: bool | Callabl
     else:
         out = progress
     folder = Path(folder)
+    merge = _may_write(folder, force)
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        folder.parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise DiffwashError(f"cannot create the output folder: {e.strerror}", file=folder) from None
-    if not os.access(folder, os.W_OK):
-        raise DiffwashError("the output folder is not writable", file=folder)
-    res = DemoResult(folder=folder, truth=read_json(DATA / "truth.json"))
-    steps = _Steps(6, out)
+    with atomic_folder(folder, merge=merge) as work:
+        res = DemoResult(folder=work, truth=read_json(DATA / "truth.json"))
+        _run_steps(res, _Steps(6, out))
+        if not merge:  # the demo owns the whole folder: a later demo may replace it
+            (work / MARKER).write_text(f"written by diffwash {__version__} demo; `diffwash demo` may replace this "
+                                       "folder\n", encoding="utf-8")  # fmt: skip
+    res.files = {name: folder / p.relative_to(work) for name, p in res.files.items()}
+    res.folder = folder
+    return res
+
+
+def _may_write(folder: Path, force: bool) -> bool:
+    """Whether the demo may write `folder`, and whether into other files (True: merge) or whole (False)."""
+    if not folder.exists():
+        return False
+    if not folder.is_dir():
+        raise DiffwashError("exists and is not a folder", file=folder)
+    if not any(folder.iterdir()) or (folder / MARKER).is_file():
+        return False
+    if not force:
+        raise DiffwashError(f"is not empty and holds no {MARKER} marker (the demo did not write it); choose "
+                            "another folder, or use --force to write into it anyway", file=folder)  # fmt: skip
+    return True
+
+
+def _run_steps(res: DemoResult, steps: _Steps) -> None:
+    """The demo's six steps, writing into `res.folder`."""
+    folder, out = res.folder, steps.out
 
     # 1. The pigment, from the swatch card.
     t = steps.start("fitting the pigment's K and S to the swatch-card photo (card.jpg)")
@@ -129,7 +166,7 @@ def run(folder: str | os.PathLike = "diffwash-demo", *, progress: bool | Callabl
     swatch.save(folder / "pigment.json")
     res.files["pigment.json"] = folder / "pigment.json"
     card, _ = read_image(folder / "card.jpg")
-    save_swatch_report(folder / "swatch-fit.png", swatch, photo=card, layout=fit.read_layout(folder / "card.json"))
+    fit.save_swatch_report(folder / "swatch-fit.png", swatch, photo=card, layout=fit.read_layout(folder / "card.json"))
     res.files["swatch-fit.png"] = folder / "swatch-fit.png"
     res.swatch = swatch
     res.seconds["swatch fit"] = steps.done(
@@ -153,28 +190,29 @@ def run(folder: str | os.PathLike = "diffwash-demo", *, progress: bool | Callabl
     image_fit.save(folder / "fitted-scene.json")
     res.files["fitted-scene.json"] = folder / "fitted-scene.json"
     res.image = image_fit
-    save_image_report(folder / "image-fit.png", image_fit, [folder / "target.png"], [scene])
+    fit.save_image_report(folder / "image-fit.png", image_fit, [folder / "target.png"], [scene])
     res.files["image-fit.png"] = folder / "image-fit.png"
     res.seconds["image fit"] = steps.done(
         t, f"{'converged' if image_fit.converged else 'NOT converged'} in {image_fit.iterations} steps, "
         f"rms residual {image_fit.rms[0]:.1e}"
     )
-    fitted = load_scene(folder / "fitted-scene.json")
+    _realtime_steps(res, steps, load_scene(folder / "fitted-scene.json"))
 
-    # 3. The LUT.
+
+def _realtime_steps(res: DemoResult, steps: _Steps, fitted: Any) -> None:
+    """Steps 3-6: bake the LUT, export, draw an OpenGL frame, write the report."""
+    folder = res.folder
     t = steps.start("baking the 256x256 LUT (lut.png + lut.json)")
     table = lut.bake(fitted, 256)
     for p in lut.save(folder / "lut.png", table):
         res.files[p.name] = p
     res.seconds["bake"] = steps.done(t)
 
-    # 4. Shaders and viewer.
     t = steps.start("exporting the WebGL2 shaders, the mesh and viewer.html (export/)")
     written = export(fitted, folder / "export", target="webgl2", overwrite=True)
     res.files["export/"] = folder / "export"
     res.seconds["export"] = steps.done(t, f"{len(written)} files")
 
-    # 5. An OpenGL frame through the exported shaders.
     t = steps.start("drawing a frame through the exported shaders with OpenGL (preview.png)")
     frame = None
     try:
@@ -187,31 +225,28 @@ def run(folder: str | os.PathLike = "diffwash-demo", *, progress: bool | Callabl
         res.files["preview.png"] = folder / "preview.png"
     res.seconds["preview"] = steps.done(t, res.preview_renderer)
 
-    # 6. The report.
     t = steps.start("writing the one-page report (report.png)")
-    fitted_img = np.clip(np.asarray(srgb_encode(render(fitted))), 0, 1)
+    fitted_img = to_display(render(fitted))
     _report(folder / "report.png", res, table, frame, fitted_img)
     res.files["report.png"] = folder / "report.png"
     res.seconds["report"] = steps.done(t)
-    return res
 
 
 def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, fitted_img: np.ndarray) -> None:
     """One page: the card and its fit, the target and its fit, the LUT and the OpenGL frame."""
-    from matplotlib.figure import Figure  # not pyplot: the caller's backend (a notebook's) stays as it is
-
-    from ._io import atomic_path, read_image
-
-    swatch, image = res.swatch, res.image
-    truth_p = res.truth["pigment"]
-    card, _ = read_image(res.folder / "card.jpg")
-    target, _ = read_image(res.folder / "target.png")
-    from .colorimetry import srgb_encode
-
     fig = Figure(figsize=(16, 10.5), dpi=100)
     grid = fig.add_gridspec(3, 4, height_ratios=[1, 1, 1], hspace=0.45, wspace=0.25)
     fig.suptitle("diffwash demo: swatch photo -> pigment -> shading fit -> LUT -> real-time shader", fontsize=15)
+    _report_swatch_row(fig, grid, res)
+    _report_image_row(fig, grid, res, fitted_img)
+    _report_realtime_row(fig, grid, res, table, frame)
+    save_figure(path, fig, facecolor="white")
 
+
+def _report_swatch_row(fig: Figure, grid: Any, res: DemoResult) -> None:
+    """Row 1: the card, its patches photographed and fitted, and the pigment against the truth."""
+    swatch, truth_p = res.swatch, res.truth["pigment"]
+    card, _ = read_image(res.folder / "card.jpg")
     ax = fig.add_subplot(grid[0, 0])
     ax.imshow(card)
     ax.set_title("1. the swatch-card photo (card.jpg)")
@@ -223,8 +258,7 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     cells = np.ones((2 * len(grounds), len(coats), 3))
     for p in swatch.patches:
         i, j = 2 * grounds.index(p.ground), coats.index(p.coats)
-        cells[i, j] = np.clip(np.asarray(srgb_encode(p.observed)), 0, 1)
-        cells[i + 1, j] = np.clip(np.asarray(srgb_encode(p.fitted)), 0, 1)
+        cells[i, j], cells[i + 1, j] = to_display(p.observed), to_display(p.fitted)
         ax.text(j, i + 0.5, f"ΔE {p.delta_e:.2f}", ha="center", va="center", fontsize=7, color="white")
     ax.imshow(cells, aspect="auto", interpolation="nearest")
     ax.set_yticks(range(2 * len(grounds)), [f"{g}: {w}" for g in grounds for w in ("photo", "fitted")], fontsize=8)
@@ -243,14 +277,16 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     ax.set_title("the fitted pigment against the card's truth (per coat)")
     ax.legend(ncols=4, fontsize=8)
 
-    ax = fig.add_subplot(grid[1, 0])
-    ax.imshow(target)
-    ax.set_title("2. the target image (target.png)")
-    ax.axis("off")
-    ax = fig.add_subplot(grid[1, 1])
-    ax.imshow(fitted_img)
-    ax.set_title("rendered with the fitted constants")
-    ax.axis("off")
+
+def _report_image_row(fig: Figure, grid: Any, res: DemoResult, fitted_img: np.ndarray) -> None:
+    """Row 2: the target, the fitted render, the loss curve and the constants against the truth."""
+    image = res.image
+    target, _ = read_image(res.folder / "target.png")
+    for col, img, title in ((0, target, "2. the target image (target.png)"), (1, fitted_img, "rendered with the fitted constants")):
+        ax = fig.add_subplot(grid[1, col])
+        ax.imshow(img)
+        ax.set_title(title)
+        ax.axis("off")
     ax = fig.add_subplot(grid[1, 2])
     ax.semilogy(np.arange(1, len(image.history) + 1), image.history, "o-", ms=3)
     ax.set_xlabel("solver step")
@@ -268,8 +304,11 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
     tab.scale(1.1, 1.6)
     ax.set_title("shading constants")
 
+
+def _report_realtime_row(fig: Figure, grid: Any, res: DemoResult, table: Any, frame: np.ndarray | None) -> None:
+    """Row 3: the LUT, the OpenGL frame, and what was written."""
     ax = fig.add_subplot(grid[2, 0])
-    ax.imshow(np.clip(np.asarray(srgb_encode(table.colour)), 0, 1), extent=[0, 1, 1, 0])
+    ax.imshow(to_display(table.colour), extent=[0, 1, 1, 0])
     ax.set_xlabel("wash thickness / wash_max")
     ax.set_ylabel("unlit thickness / unlit_max")
     ax.set_title("3. the baked LUT (lut.png)")
@@ -289,12 +328,11 @@ def _report(path: Path, res: DemoResult, table: Any, frame: np.ndarray | None, f
         + "\n\ntimes: " + ", ".join(f"{k} {v:.1f} s" for k, v in res.seconds.items())
     )  # fmt: skip
     ax.text(0, 1, text, va="top", family="monospace", fontsize=9)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", facecolor="white")
 
 
-def main_summary(res: DemoResult, stream: Any = sys.stdout) -> None:
-    """Print what the demo wrote and where to look."""
+def main_summary(res: DemoResult, stream: Any = None) -> None:
+    """Print what the demo wrote and where to look (on `stream`, default the standard output of the moment)."""
+    stream = sys.stdout if stream is None else stream
     total = sum(res.seconds.values())
     print(f"\nwrote {len(res.files)} results to {res.folder}/ in {total:.0f} s:", file=stream)
     for name, p in res.files.items():

@@ -43,27 +43,37 @@ import math
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-__all__ = ["layer", "composite", "composite_stack", "over", "infinite_reflectance", "invert_black_white"]
+from ._xp import JAX, namespace, shader_function
 
-# Power series of cosh(sqrt(z)) and sinh(sqrt(z))/sqrt(z) in z = (beta x)^2, used
-# for z < 1 (terms to z^9: the truncation error is below 1e-18).
-_N_TERMS = 10
-_CH_COEFFS = tuple(1.0 / math.factorial(2 * n) for n in range(_N_TERMS))
-_SH_COEFFS = tuple(1.0 / math.factorial(2 * n + 1) for n in range(_N_TERMS))
+__all__ = [
+    "layer",
+    "composite",
+    "composite_stack",
+    "over",
+    "infinite_reflectance",
+    "invert_black_white",
+    "SERIES_TERMS",
+]
+
+#: Terms of the power series of cosh(sqrt(z)) and sinh(sqrt(z))/sqrt(z) in z = (beta x)^2 that `layer`
+#: uses for z < 1 (to z^9: the truncation error is below 1e-18); the shaders use the same series.
+SERIES_TERMS = 10
+_CH_COEFFS = tuple(1.0 / math.factorial(2 * n) for n in range(SERIES_TERMS))
+_SH_COEFFS = tuple(1.0 / math.factorial(2 * n + 1) for n in range(SERIES_TERMS))
 
 
-def _horner(coeffs: tuple[float, ...], z: Array) -> Array:
-    acc = jnp.full_like(z, coeffs[-1])
-    for c in reversed(coeffs[:-1]):
+def _horner(coeffs: tuple[float, ...], z):
+    acc = coeffs[-1] * z + coeffs[-2]
+    for c in reversed(coeffs[:-2]):
         acc = acc * z + c
     return acc
 
 
 def _as_float(*xs: ArrayLike) -> list[Array]:
-    dtype = jnp.result_type(*xs, float)
-    return [jnp.asarray(x, dtype) for x in xs]
+    return JAX.asfloat(*xs)
 
 
+@shader_function("km_layer", [("K", "vec3"), ("S", "vec3"), ("x", "float")], [("R", "vec3"), ("T", "vec3")])
 def layer(
     K: Float[ArrayLike, "*#b"], S: Float[ArrayLike, "*#b"], x: Float[ArrayLike, "*#b"]
 ) -> tuple[Float[Array, "*b"], Float[Array, "*b"]]:
@@ -82,35 +92,42 @@ def layer(
 
     `(R, T)`, each in `[0, 1]` with `R + T <= 1`, of the broadcast shape.
     """
-    K, S, x = _as_float(K, S, x)
-    K, S, x = jnp.broadcast_arrays(K, S, jnp.where(x < 0, 0, x))  # not maximum: its gradient at 0 is 1/2
+    xp = namespace(K, S, x)
+    K, S, x = xp.asfloat(K, S, x)
+    if xp is JAX:
+        K, S, x = jnp.broadcast_arrays(K, S, x)
+    x = xp.where(x < 0, 0, x)  # not maximum: its gradient at 0 is 1/2
     q = K * (K + 2 * S)  # beta^2
     z = q * x * x  # (beta x)^2
     small = z < 1
     # Series branch (beta x < 1): unscaled cosh and sinh/beta; exact at beta = 0.
-    z_s = jnp.where(small, z, 0)
+    z_s = xp.where(small, z, 0)
     ch_s = _horner(_CH_COEFFS, z_s)
     sh_s = x * _horner(_SH_COEFFS, z_s)
     # Exponential branch (beta x >= 1): both scaled by exp(-beta x), never overflow.
-    beta = jnp.sqrt(jnp.where(small, 1, q))
-    bx = jnp.where(small, 1, beta * x)
-    e1 = jnp.exp(-bx)
+    beta = xp.sqrt(xp.where(small, 1, q))
+    bx = xp.where(small, 1, beta * x)
+    e1 = xp.exp(-bx)
     e2 = e1 * e1
     ch_l = (1 + e2) / 2
-    sh_l = -jnp.expm1(-2 * bx) / (2 * beta)
-    ch = jnp.where(small, ch_s, ch_l)
-    sh = jnp.where(small, sh_s, sh_l)
-    scale = jnp.where(small, 1, e1)
+    sh_l = -xp.expm1(-2 * bx) / (2 * beta)
+    ch = xp.where(small, ch_s, ch_l)
+    sh = xp.where(small, sh_s, sh_l)
+    scale = xp.where(small, 1, e1)
     denom = (S + K) * sh + ch  # >= 1/2
     return S * sh / denom, scale / denom
 
 
-def _safe_div(num: Array, den: Array) -> Array:
+def _safe_div(num, den):
     """num / den where den > 0, else 0, with finite gradients (the double-where)."""
+    xp = namespace(num, den)
     ok = den > 0
-    return jnp.where(ok, num / jnp.where(ok, den, 1), 0)
+    return xp.where(ok, num / xp.where(ok, den, 1), 0)
 
 
+@shader_function(
+    "km_composite", [("R1", "vec3"), ("T1", "vec3"), ("R2", "vec3"), ("T2", "vec3")], [("R", "vec3"), ("T", "vec3")]
+)
 def composite(
     R1: Float[ArrayLike, "*#b"],
     T1: Float[ArrayLike, "*#b"],
@@ -135,7 +152,8 @@ def composite(
 
     `(R, T)` of the stack.
     """
-    R1, T1, R2, T2 = _as_float(R1, T1, R2, T2)
+    xp = namespace(R1, T1, R2, T2)
+    R1, T1, R2, T2 = xp.asfloat(R1, T1, R2, T2)
     d = 1 - R1 * R2
     return R1 + _safe_div(T1 * T1 * R2, d), _safe_div(T1 * T2, d)
 
@@ -168,6 +186,7 @@ def composite_stack(
     return R1 + _safe_div(T1 * T1 * R2, d), R2b + _safe_div(T2 * T2 * R1b, d), _safe_div(T1 * T2, d)
 
 
+@shader_function("km_over", [("R", "vec3"), ("T", "vec3"), ("R_ground", "vec3")], "vec3")
 def over(
     R: Float[ArrayLike, "*#b"], T: Float[ArrayLike, "*#b"], R_ground: Float[ArrayLike, "*#b"]
 ) -> Float[Array, "*b"]:
@@ -177,7 +196,8 @@ def over(
 
     i.e. `composite` with a ground that transmits nothing (the paper, in the seed).
     """
-    R, T, R_ground = _as_float(R, T, R_ground)
+    xp = namespace(R, T, R_ground)
+    R, T, R_ground = xp.asfloat(R, T, R_ground)
     return R + _safe_div(T * T * R_ground, 1 - R * R_ground)
 
 

@@ -54,11 +54,19 @@ from pathlib import Path
 from typing import Any
 
 import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
+import OpenEXR
+import png
+from jaxtyping import Array
 
+from . import shading
 from ._errors import DiffwashError
 from ._io import atomic_path, read_json
+from ._scene import Scene, load_scene
 from ._version import __version__
+from .colorimetry import from_display, to_display
 from .shading import DEFAULT_CONSTANTS, Params
 
 __all__ = [
@@ -69,6 +77,7 @@ __all__ = [
     "load_encoded",
     "encoded",
     "check_size",
+    "files",
     "format_for",
     "sidecar",
     "sidecar_path",
@@ -76,8 +85,6 @@ __all__ = [
     "KINDS",
     "MIN_SIZE",
     "MAX_SIZE",
-    "srgb_encode",
-    "srgb_decode",
 ]
 
 #: Smallest and largest number of samples per axis.
@@ -100,18 +107,6 @@ _CONVENTION = {
     "rows": "row j of M (from the top) holds unlit thickness j / (M - 1) * unlit_max",
     "sampling": "texel centres: u = (wash / wash_max * (N - 1) + 0.5) / N, v = (unlit / unlit_max * (M - 1) + 0.5) / M",
 }
-
-
-def srgb_encode(x: np.ndarray) -> np.ndarray:
-    """Linear to display sRGB (IEC 61966-2-1), in NumPy float64, clipped to [0, 1]."""
-    x = np.clip(np.asarray(x, np.float64), 0, 1)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-
-
-def srgb_decode(v: np.ndarray) -> np.ndarray:
-    """Display sRGB to linear (IEC 61966-2-1), in NumPy float64, clipped to [0, 1]."""
-    v = np.clip(np.asarray(v, np.float64), 0, 1)
-    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4))
 
 
 class Lut(eqx.Module):
@@ -204,8 +199,6 @@ def check_size(size: Any, field: str = "size") -> tuple[int, int]:
 
 
 def _params_of(scene_or_params: Any) -> tuple[Params, str | None]:
-    from ._scene import Scene, load_scene
-
     if isinstance(scene_or_params, Params):
         return scene_or_params, None
     if isinstance(scene_or_params, Scene):
@@ -236,25 +229,14 @@ def _meta(params: Params, source: str | None) -> dict:
     return meta
 
 
-_EVALUATORS: dict[str, Callable] = {}
+@jax.jit
+def _bake_colour(params: Params, wash: Array, unlit: Array) -> Array:
+    return shading.glaze(params, wash, unlit)
 
 
-def _evaluator(kind: str) -> Callable:
-    """A jitted `(params, wash (R, N), unlit (R, N)) -> (R, N, C)` for one kind (compiled once per shape)."""
-    if kind not in _EVALUATORS:
-        import jax
-        import jax.numpy as jnp
-
-        from .shading import glaze, glaze_layers
-
-        def colour(params, wash, unlit):
-            return glaze(params, wash, unlit)
-
-        def rt(params, wash, unlit):
-            return jnp.concatenate(glaze_layers(params, wash, unlit), axis=-1)
-
-        _EVALUATORS[kind] = jax.jit(colour if kind == "colour" else rt)
-    return _EVALUATORS[kind]
+@jax.jit
+def _bake_rt(params: Params, wash: Array, unlit: Array) -> Array:
+    return jnp.concatenate(shading.glaze_layers(params, wash, unlit), axis=-1)
 
 
 def bake(
@@ -283,8 +265,6 @@ def bake(
     `j / (M - 1) * unlit_max`, with `wash_max = k_specular * k_wash` and
     `unlit_max = k_unlit`.
     """
-    import jax.numpy as jnp
-
     n, m = check_size(size)
     if kind not in KINDS:
         raise DiffwashError(f"must be one of {', '.join(KINDS)}, got {kind!r}", field="kind")
@@ -299,7 +279,8 @@ def bake(
     # Rows in blocks of a fixed shape (the last one padded): one compilation per
     # table width, bounded memory for 4096^2 tables.
     rows = max(1, min(m, (1 << 18) // n))
-    evaluate = _evaluator(kind)
+    evaluate = _bake_colour if kind == "colour" else _bake_rt
+    canonical = shading.canonical(params)  # one compiled program for any pigment names
     channels = 3 if kind == "colour" else 6
     out = np.empty((m, n, channels), np.float32)
     wash_block = np.broadcast_to(wash, (rows, n))
@@ -307,7 +288,7 @@ def bake(
         stop = min(start + rows, m)
         u = np.zeros(rows, dtype)
         u[: stop - start] = unlit[start:stop]
-        block = evaluate(params, wash_block, np.broadcast_to(u[:, None], (rows, n)))
+        block = evaluate(canonical, wash_block, np.broadcast_to(u[:, None], (rows, n)))
         out[start:stop] = np.asarray(block)[: stop - start]
         if progress is not None:
             progress(stop / m)
@@ -323,6 +304,13 @@ def sidecar_path(path: str | os.PathLike) -> Path:
     """The sidecar of a LUT file: `lut.png` -> `lut.json` (a `.json` path is its own)."""
     path = Path(path)
     return path if path.suffix.lower() == ".json" else path.with_suffix(".json")
+
+
+def files(path: str | os.PathLike, fmt: str, kind: str) -> dict[str, Path]:
+    """Every file a LUT of `kind` saved as `fmt` at `path` occupies, by what it holds (images and sidecar)."""
+    path = Path(path)
+    images = _image_paths(path, kind) if fmt.startswith("png") else {kind: path}
+    return {**images, "sidecar": sidecar_path(path)}
 
 
 def _image_paths(path: Path, kind: str) -> dict[str, Path]:
@@ -376,9 +364,9 @@ def encoded(lut: Lut, fmt: str) -> np.ndarray:
     """The values as `fmt` stores them: sRGB-encoded and quantised for PNGs, linear float32 otherwise."""
     v = np.asarray(lut.values, np.float64)
     if fmt == "png16":
-        return np.round(srgb_encode(v) * 65535).astype(np.uint16)
+        return np.round(to_display(v) * 65535).astype(np.uint16)
     if fmt == "png8":
-        return np.round(srgb_encode(v) * 255).astype(np.uint8)
+        return np.round(to_display(v) * 255).astype(np.uint8)
     return v.astype(np.float32)
 
 
@@ -392,7 +380,6 @@ def save(path: str | os.PathLike, lut: Lut, fmt: str | None = None) -> list[Path
 
     The paths written, the sidecar last.
     """
-    import png
 
     path = Path(path)
     fmt = format_for(path, fmt)
@@ -421,7 +408,6 @@ def save(path: str | os.PathLike, lut: Lut, fmt: str | None = None) -> list[Path
 
 
 def _write_exr(path: Path, data: np.ndarray, header: dict) -> None:
-    import OpenEXR
 
     names = ["R", "G", "B"] if data.shape[-1] == 3 else ["R", "G", "B", "T.R", "T.G", "T.B"]
     channels = {name: np.ascontiguousarray(data[..., c]) for c, name in enumerate(names)}
@@ -431,7 +417,6 @@ def _write_exr(path: Path, data: np.ndarray, header: dict) -> None:
 
 
 def _read_exr(path: Path, channels: int) -> np.ndarray:
-    import OpenEXR
 
     with OpenEXR.File(str(path)) as f:
         ch = {k: np.asarray(v.pixels) for k, v in f.channels().items()}
@@ -447,7 +432,6 @@ def _read_exr(path: Path, channels: int) -> np.ndarray:
 
 
 def _read_png(path: Path) -> tuple[np.ndarray, int]:
-    import png
 
     if not path.is_file():
         raise DiffwashError("no such LUT image (named in the sidecar)", file=path)
@@ -469,7 +453,7 @@ def load_encoded(table: Lut, fmt: str = "png16") -> Lut:
     if FORMATS[fmt][1] == "linear":
         return table
     top = 65535 if fmt == "png16" else 255
-    values = srgb_decode(encoded(table, fmt).astype(np.float64) / top).astype(np.float32)
+    values = from_display(encoded(table, fmt).astype(np.float64) / top).astype(np.float32)
     return Lut(values=values, wash_max=table.wash_max, unlit_max=table.unlit_max, kind=table.kind, meta=table.meta)
 
 
@@ -533,7 +517,7 @@ def load(path: str | os.PathLike) -> Lut:
     if values.shape != (m, n, channels):
         raise DiffwashError(f"holds an array of shape {values.shape}, the sidecar says {(m, n, channels)}", file=side, field="size")
     if head["encoding"] == "srgb":
-        values = srgb_decode(values)
+        values = from_display(values)
     elif head["encoding"] != "linear":
         raise DiffwashError(f"must be srgb or linear, got {head['encoding']!r}", file=side, field="encoding")
     meta = {k: head[k] for k in ("pigments", "paper", "constants", "light", "diffwash_version", "scene") if k in head}

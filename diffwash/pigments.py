@@ -2,8 +2,7 @@
 
 A pigment is its absorption `K` and scattering `S` per unit thickness for red,
 green and blue, plus the three properties Curtis et al. (1997) use for pigment
-transport (density, staining, granularity; kept for completeness, unused by the
-shading model).
+transport (density, staining, granularity).
 
 Pigment files are JSON, described by the JSON Schema `data/pigments/schema.json`
 shipped with the package: either one pigment object
@@ -21,6 +20,7 @@ Curtis et al.), `data/pigments/seed.json`.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import os
 from importlib import resources
@@ -28,34 +28,38 @@ from pathlib import Path
 from typing import Any
 
 import equinox as eqx
+import jax
 import numpy as np
+from jaxtyping import ArrayLike, Float
 
 from ._errors import DiffwashError
-from ._io import finite_number, read_json, write_json
+from ._io import check_float32, finite_number, read_json, write_json
 
-__all__ = ["Pigment", "load", "library", "names", "parse", "save", "DEFAULTS"]
+__all__ = ["Pigment", "unlabelled", "load", "library", "names", "parse", "save", "DEFAULTS"]
 
 #: Values of the optional keys when a pigment file leaves them out.
 DEFAULTS = {"density": 0.05, "staining": 1.0, "granularity": 0.5}
 
 
 class Pigment(eqx.Module):
-    """A watercolour pigment: a pytree whose leaves are `K` and `S`.
+    """A watercolour pigment: a pytree whose leaves are its coefficients.
 
     **Fields:**
 
-    - `name`: the pigment's name.
     - `K`: absorption per unit thickness, shape (3,) (red, green, blue), `>= 0`.
     - `S`: scattering per unit thickness, shape (3,), `>= 0`.
-    - `density`, `staining`, `granularity`: Curtis et al.'s rho, omega, gamma.
+    - `density`, `staining`, `granularity`: Curtis et al.'s rho, omega, gamma
+      (scalars; differentiable leaves like `K` and `S`).
+    - `name`: the pigment's label: static metadata, which the compiled kernels
+      never see (`unlabelled`), so relabelling a pigment compiles nothing.
     """
 
-    K: Any
-    S: Any
+    K: Float[ArrayLike, " C"]
+    S: Float[ArrayLike, " C"]
+    density: Float[ArrayLike, ""] = DEFAULTS["density"]
+    staining: Float[ArrayLike, ""] = DEFAULTS["staining"]
+    granularity: Float[ArrayLike, ""] = DEFAULTS["granularity"]
     name: str = eqx.field(static=True, default="pigment")
-    density: float = eqx.field(static=True, default=DEFAULTS["density"])
-    staining: float = eqx.field(static=True, default=DEFAULTS["staining"])
-    granularity: float = eqx.field(static=True, default=DEFAULTS["granularity"])
 
     def to_dict(self) -> dict[str, Any]:
         """The pigment as a JSON-ready dict in the library schema."""
@@ -63,10 +67,19 @@ class Pigment(eqx.Module):
             "name": self.name,
             "K": [float(v) for v in np.asarray(self.K)],
             "S": [float(v) for v in np.asarray(self.S)],
-            "density": self.density,
-            "staining": self.staining,
-            "granularity": self.granularity,
+            "density": float(self.density),
+            "staining": float(self.staining),
+            "granularity": float(self.granularity),
         }
+
+
+def unlabelled(tree: Any) -> Any:
+    """`tree` with every `Pigment` in it relabelled to the default label (what compiled kernels take)."""
+
+    def strip(x: Any) -> Any:
+        return dataclasses.replace(x, name="pigment") if isinstance(x, Pigment) and x.name != "pigment" else x
+
+    return jax.tree.map(strip, tree, is_leaf=lambda x: isinstance(x, Pigment))
 
 
 def _default_library_path() -> Path:
@@ -84,6 +97,7 @@ def _rgb(value: Any, file: Any, field: str) -> np.ndarray:
     for v in value:
         if not finite_number(v):
             raise DiffwashError(f"must be finite numbers, got {v!r}", file=file, field=field)
+        check_float32(v, file=file, field=field)
         if v < 0:
             raise DiffwashError(f"must be >= 0, got {v!r}", file=file, field=field)
     return np.asarray(value, np.float64)
@@ -110,7 +124,7 @@ def parse(obj: Any, *, file: str | os.PathLike | None = None, where: str = "") -
         v = obj.get(key, default)
         if not finite_number(v) or v < 0:
             raise DiffwashError(f"must be a finite number >= 0, got {v!r}", file=file, field=ctx + key)
-        extra[key] = float(v)
+        extra[key] = check_float32(v, file=file, field=ctx + key)
     return Pigment(K=K, S=S, name=name.strip(), **extra)
 
 
@@ -120,8 +134,22 @@ def _read_file(path: str | os.PathLike) -> list[Pigment]:
         items = data["pigments"]
         if not isinstance(items, list) or not items:
             raise DiffwashError("must be a non-empty list of pigments", file=path, field="pigments")
-        return [parse(p, file=path, where=f"pigments[{i}]") for i, p in enumerate(items)]
+        pigments = [parse(p, file=path, where=f"pigments[{i}]") for i, p in enumerate(items)]
+        _refuse_colliding_names(pigments, path)
+        return pigments
     return [parse(data, file=path)]
+
+
+def _refuse_colliding_names(pigments: list[Pigment], path: Any) -> None:
+    """Two pigments whose names match as `load` matches names (ignoring case and runs of spaces) are refused:
+    a name would pick one of them silently."""
+    seen: dict[str, int] = {}
+    for i, p in enumerate(pigments):
+        j = seen.setdefault(_key(p.name), i)
+        if j != i:
+            raise DiffwashError(f"{p.name!r} and pigments[{j}].name {pigments[j].name!r} name the same pigment "
+                                "(names are matched ignoring case and spaces)", file=path,
+                                field=f"pigments[{i}].name")  # fmt: skip
 
 
 def library(path: str | os.PathLike | None = None) -> dict[str, Pigment]:

@@ -20,20 +20,20 @@ the wash, on top of the paper.
 
 This module is the one source of truth for the model: the renderer evaluates it
 per pixel or per vertex, the LUT baker evaluates `glaze` on a grid of
-thicknesses, and the exported shaders are tested against both.
+thicknesses, and the shader generator (`diffwash._glsl`) traces these very
+functions into GLSL (`diffwash._xp`), constants included.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 import equinox as eqx
-import jax.numpy as jnp
+import jax
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from . import km
-from .pigments import Pigment
+from ._xp import namespace, shader_function
+from .pigments import Pigment, unlabelled
 
 __all__ = [
     "Params",
@@ -43,8 +43,11 @@ __all__ = [
     "thicknesses",
     "glaze",
     "glaze_layers",
+    "canonical",
+    "CONSTANTS",
     "DEFAULT_CONSTANTS",
     "DEFAULT_PAPER",
+    "GAIN_BIAS_EPS",
 ]
 
 #: Model constants a scene may leave out, with their defaults.
@@ -57,10 +60,14 @@ DEFAULT_CONSTANTS: dict[str, float] = {
     "bias": 0.5,
     "wash_reduction": 0.0,
 }
+#: The model's scalar constants, in the order the scene file, the sidecars and the shaders list them.
+CONSTANTS: tuple[str, ...] = tuple(DEFAULT_CONSTANTS)
 #: Linear reflectance of the default paper (a warm white watercolour paper).
 DEFAULT_PAPER = (0.92, 0.90, 0.84)
+#: `bias` and `gain` clamp their shape parameter into `[eps, 1 - eps]` (the curves are singular at 0 and 1).
+GAIN_BIAS_EPS = 1e-6
 
-_EPS_01 = 1e-6  # gain and bias are clamped into [eps, 1 - eps]
+Scalar = Float[ArrayLike, ""]
 
 
 class Params(eqx.Module):
@@ -82,66 +89,96 @@ class Params(eqx.Module):
 
     wash: Pigment
     unlit: Pigment
-    paper: Any = eqx.field(default_factory=lambda: np.asarray(DEFAULT_PAPER))
-    light: Any = eqx.field(default_factory=lambda: np.asarray([1.0, 1.0, 1.0]))
-    k_wash: Any = DEFAULT_CONSTANTS["k_wash"]
-    k_specular: Any = DEFAULT_CONSTANTS["k_specular"]
-    shininess: Any = DEFAULT_CONSTANTS["shininess"]
-    k_unlit: Any = DEFAULT_CONSTANTS["k_unlit"]
-    gain: Any = DEFAULT_CONSTANTS["gain"]
-    bias: Any = DEFAULT_CONSTANTS["bias"]
-    wash_reduction: Any = DEFAULT_CONSTANTS["wash_reduction"]
+    paper: Float[ArrayLike, " C"] = eqx.field(default_factory=lambda: np.asarray(DEFAULT_PAPER))
+    light: Float[ArrayLike, "3"] = eqx.field(default_factory=lambda: np.asarray([1.0, 1.0, 1.0]))
+    k_wash: Scalar = DEFAULT_CONSTANTS["k_wash"]
+    k_specular: Scalar = DEFAULT_CONSTANTS["k_specular"]
+    shininess: Scalar = DEFAULT_CONSTANTS["shininess"]
+    k_unlit: Scalar = DEFAULT_CONSTANTS["k_unlit"]
+    gain: Scalar = DEFAULT_CONSTANTS["gain"]
+    bias: Scalar = DEFAULT_CONSTANTS["bias"]
+    wash_reduction: Scalar = DEFAULT_CONSTANTS["wash_reduction"]
 
     @property
-    def wash_max(self) -> Any:
+    def wash_max(self) -> Scalar:
         """The largest wash thickness the model produces: `k_specular * k_wash`."""
         return self.k_specular * self.k_wash
 
     @property
-    def unlit_max(self) -> Any:
+    def unlit_max(self) -> Scalar:
         """The largest unlit thickness the model produces: `k_unlit`."""
         return self.k_unlit
 
 
+def _number(x):
+    """A Python number as a float64 NumPy scalar, as loaded scenes hold (one leaf type, not a weak one)."""
+    return np.float64(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else x
+
+
+def canonical(params: Params) -> Params:
+    """`params` as the compiled kernels take it: pigments without labels, numbers as float64 scalars.
+
+    So relabelling a pigment or writing `replace(params, gain=0.3)` reuses the
+    compiled programs instead of compiling new ones (labels are static
+    metadata; a weakly typed Python number is another leaf type than a scene's).
+    """
+    return unlabelled(jax.tree.map(_number, params))
+
+
+@shader_function("schlick_bias", [("t", "float"), ("b", "float")], "float")
 def bias(t: Float[ArrayLike, "*#b"], b: Float[ArrayLike, "*#b"]) -> Float[Array, "*b"]:
     r"""Schlick's bias: $t / ((1/b - 2)(1 - t) + 1)$, for `t` in [0, 1].
 
     `b = 0.5` is the identity; `b > 0.5` pushes values up. `b` is clamped into
-    `[1e-6, 1 - 1e-6]`.
+    `[GAIN_BIAS_EPS, 1 - GAIN_BIAS_EPS]`.
+
+    **References:** C. Schlick, "Fast alternatives to Perlin's bias and gain
+    functions", Graphics Gems IV (1994).
     """
-    b = jnp.clip(b, _EPS_01, 1 - _EPS_01)
+    xp = namespace(t, b)
+    b = xp.clip(b, GAIN_BIAS_EPS, 1 - GAIN_BIAS_EPS)
     return t / ((1 / b - 2) * (1 - t) + 1)
 
 
+@shader_function("perlin_gain", [("t", "float"), ("g", "float")], "float")
 def gain(t: Float[ArrayLike, "*#b"], g: Float[ArrayLike, "*#b"]) -> Float[Array, "*b"]:
     r"""Perlin's gain built on Schlick's bias, for `t` in [0, 1].
 
     `gain(t, g) = bias(2t, 1 - g) / 2` for `t < 1/2`, else
     `1 - bias(2 - 2t, 1 - g) / 2`. `g = 0.5` is the identity; `g > 0.5`
     steepens the middle.
+
+    **References:** K. Perlin and E. M. Hoffert, "Hypertexture", SIGGRAPH 1989.
     """
-    t = jnp.asarray(t)
-    lo = t < 0.5
+    xp = namespace(t, g)
+    (t,) = xp.asfloat(t)
     # Each branch sees only its own half of [0, 1] (the "double where").
-    a = bias(2 * jnp.minimum(t, 0.5), 1 - g) / 2
-    c = 1 - bias(2 - 2 * jnp.maximum(t, 0.5), 1 - g) / 2
-    return jnp.where(lo, a, c)
+    a = bias(2 * xp.minimum(t, 0.5), 1 - g) / 2
+    c = 1 - bias(2 - 2 * xp.maximum(t, 0.5), 1 - g) / 2
+    return xp.where(t < 0.5, a, c)
 
 
-def safe_normalize(v: Float[ArrayLike, "*b 3"], axis: int = -1) -> Float[Array, "*b 3"]:
-    """`v / |v|`, and 0 (with a zero gradient) where `v = 0`."""
-    v = jnp.asarray(v)
-    n2 = jnp.sum(v * v, axis=axis, keepdims=True)
+@shader_function("safe_normalize", [("v", "vec3")], "vec3")
+def safe_normalize(v: Float[ArrayLike, "*b 3"]) -> Float[Array, "*b 3"]:
+    """`v / |v|` along the last axis, and 0 (with a zero gradient) where `v = 0`."""
+    xp = namespace(v)
+    (v,) = xp.asfloat(v)
+    n2 = xp.dot(v, v, keepdims=True)
     ok = n2 > 0
-    return jnp.where(ok, v / jnp.sqrt(jnp.where(ok, n2, 1)), 0)
+    return xp.where(ok, v / xp.sqrt(xp.where(ok, n2, 1)), 0)
 
 
-def _pow01(x: Array, n: Array) -> Array:
+@shader_function("pow01", [("x", "float"), ("n", "float")], "float")
+def _pow01(x, n):
     """x**n for x in [0, 1] and n >= 0, with finite gradients (0**0 = 1)."""
+    xp = namespace(x, n)
     ok = x > 0
-    return jnp.where(ok, jnp.exp(n * jnp.log(jnp.where(ok, x, 1))), jnp.where(n == 0, 1.0, 0.0))
+    return xp.where(ok, xp.exp(n * xp.log(xp.where(ok, x, 1))), xp.where(n == 0, 1.0, 0.0))
 
 
+@shader_function(
+    "watercolour_thicknesses", [("N", "vec3"), ("L", "vec3"), ("V", "vec3")], [("wash", "float"), ("unlit", "float")]
+)
 def thicknesses(
     N: Float[ArrayLike, "*#b 3"],
     L: Float[ArrayLike, "*#b 3"],
@@ -157,33 +194,35 @@ def thicknesses(
 
     `(wash, unlit)` thicknesses, with the wash reduction applied.
     """
-    N, L, V = jnp.asarray(N), jnp.asarray(L), jnp.asarray(V)
+    xp = namespace(N, L, V)
+    N, L, V = xp.asfloat(N, L, V)
     H = safe_normalize(L + V)
-    n_dot_h = jnp.clip(jnp.sum(H * N, axis=-1), 0, 1)
-    n_dot_l = jnp.sum(L * N, axis=-1)
-    wash = (1 - _pow01(n_dot_h, jnp.maximum(params.shininess, 0))) * params.k_specular * params.k_wash
-    u = gain(bias(jnp.clip(1 - n_dot_l, 0, 1), params.bias), params.gain)
+    n_dot_h = xp.clip(xp.dot(H, N), 0, 1)
+    n_dot_l = xp.dot(L, N)
+    wash = (1 - _pow01(n_dot_h, xp.maximum(params.shininess, 0))) * params.k_specular * params.k_wash
+    u = gain(bias(xp.clip(1 - n_dot_l, 0, 1), params.bias), params.gain)
     wash = wash * (1 - params.wash_reduction * u)
     return wash, params.k_unlit * u
 
 
+@shader_function("watercolour_glaze_layers", [("wash", "float"), ("unlit", "float")], [("R", "vec3"), ("T", "vec3")])
 def glaze_layers(
     params: Params, wash: Float[ArrayLike, "*b"], unlit: Float[ArrayLike, "*b"]
-) -> tuple[Float[Array, "*b 3"], Float[Array, "*b 3"]]:
+) -> tuple[Float[Array, "*b C"], Float[Array, "*b C"]]:
     """`(R, T)` of the unlit glaze lying on the wash glaze (paper not included).
 
     The seed's suggested variant: with `R` and `T` a shader can composite over
     any paper, `R + T^2 P / (1 - R P)`.
     """
-    wash = jnp.asarray(wash)[..., None]
-    unlit = jnp.asarray(unlit)[..., None]
-    Rw, Tw = km.layer(params.wash.K, params.wash.S, wash)
-    Ru, Tu = km.layer(params.unlit.K, params.unlit.S, unlit)
+    xp = namespace(wash, unlit)
+    Rw, Tw = km.layer(params.wash.K, params.wash.S, xp.expand(wash))
+    Ru, Tu = km.layer(params.unlit.K, params.unlit.S, xp.expand(unlit))
     return km.composite(Ru, Tu, Rw, Tw)
 
 
-def glaze(params: Params, wash: Float[ArrayLike, "*b"], unlit: Float[ArrayLike, "*b"]) -> Float[Array, "*b 3"]:
-    """Linear RGB reflectance of the unlit glaze on the wash glaze on the paper.
+@shader_function("watercolour_glaze", [("wash", "float"), ("unlit", "float")], "vec3")
+def glaze(params: Params, wash: Float[ArrayLike, "*b"], unlit: Float[ArrayLike, "*b"]) -> Float[Array, "*b C"]:
+    """Linear reflectance of the unlit glaze on the wash glaze on the paper.
 
     **Arguments:**
 
@@ -192,7 +231,7 @@ def glaze(params: Params, wash: Float[ArrayLike, "*b"], unlit: Float[ArrayLike, 
 
     **Returns:**
 
-    Linear RGB reflectance, shape `(*b, 3)`.
+    Linear reflectance per channel, shape `(*b, C)`.
     """
     R, T = glaze_layers(params, wash, unlit)
-    return km.over(R, T, jnp.asarray(params.paper))
+    return km.over(R, T, params.paper)

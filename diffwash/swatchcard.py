@@ -32,7 +32,7 @@ the pigment, the paper and the ink.
 
 from __future__ import annotations
 
-import io
+import json
 import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from . import colorimetry, km
-from ._io import atomic_path, write_json, write_png
+from ._io import atomic_paths, image_format_for, refuse_overwriting_inputs, write_png
 from .pigments import Pigment
 from .shading import DEFAULT_PAPER
 
@@ -242,26 +242,22 @@ def save_swatch_card(
     photo_path = Path(photo_path)
     if orientation not in _STORE:
         raise ValueError(f"orientation must be one of {sorted(_STORE)}, got {orientation}")
+    fmt = image_format_for(photo_path, bits=bits)
+    if fmt == "png" and orientation != 1 and bits != 8:
+        raise ValueError("an EXIF-oriented PNG is written 8-bit")
+    layout_path = Path(layout_path) if layout_path is not None else photo_path.with_suffix(".json")
+    refuse_overwriting_inputs({"photo": photo_path, "layout": layout_path}, [])
     stored = np.ascontiguousarray(_STORE[orientation](card.photo))
-    suffix = photo_path.suffix.lower()
-    if suffix in (".jpg", ".jpeg") or (suffix == ".png" and (orientation != 1)):
-        if suffix == ".png" and bits != 8:
-            raise ValueError("an EXIF-oriented PNG is written 8-bit")
-        im = Image.fromarray(np.round(stored * 255).astype(np.uint8))
-        exif = Image.Exif()
-        exif[0x0112] = orientation
-        buf = io.BytesIO()
-        if suffix == ".png":
-            im.save(buf, format="PNG", exif=exif)
-        else:
-            im.save(buf, format="JPEG", quality=card.effects.jpeg_quality, exif=exif)
-        with atomic_path(photo_path) as tmp:
-            tmp.write_bytes(buf.getvalue())
-    elif suffix == ".png":
-        write_png(photo_path, stored, bits=bits)
-    else:
-        raise ValueError(f"photo must be .png, .jpg or .jpeg, got {photo_path.name}")
-    if layout_path is None:
-        layout_path = photo_path.with_suffix(".json")
     meta = {"generator": "diffwash.swatchcard", "pigment": card.pigment.to_dict(), "effects": asdict(card.effects)}
-    write_json(layout_path, {**card.layout, "meta": meta})
+    layout_text = json.dumps({**card.layout, "meta": meta}, indent=2, allow_nan=False) + "\n"
+    # Both files or neither: each goes to a temporary name, and both are renamed once both are complete.
+    with atomic_paths(photo_path, layout_path) as (photo_tmp, layout_tmp):
+        if fmt == "png" and orientation == 1:
+            write_png(photo_tmp, stored, bits=bits)
+        else:
+            im = Image.fromarray(np.round(stored * 255).astype(np.uint8))
+            exif = Image.Exif()
+            exif[0x0112] = orientation
+            extra = {"quality": card.effects.jpeg_quality} if fmt == "jpeg" else {}
+            im.save(photo_tmp, format=fmt.upper(), exif=exif, **extra)
+        layout_tmp.write_text(layout_text, encoding="utf-8")

@@ -12,9 +12,10 @@ from collections.abc import Sequence
 
 import jax.numpy as jnp
 import numpy as np
+from matplotlib.figure import Figure
 
 from . import colorimetry, km
-from ._io import atomic_path
+from ._io import save_figure
 from .pigments import Pigment
 from .shading import DEFAULT_PAPER
 
@@ -37,8 +38,7 @@ def swatch_colours(
     R, T = km.layer(pigment.K, pigment.S, x)
     on_paper = km.over(R, T, jnp.asarray(paper, float))
     on_black = R
-    enc = lambda c: np.clip(np.asarray(colorimetry.srgb_encode(c)), 0, 1)  # noqa: E731
-    return enc(on_paper), enc(on_black)
+    return colorimetry.to_display(on_paper), colorimetry.to_display(on_black)
 
 
 def draw_chart(
@@ -50,9 +50,7 @@ def draw_chart(
     the top of the swatch lies over paper, the bottom over black, with the bare
     grounds on either side.
     """
-    import matplotlib.pyplot as plt  # the caller's backend (the CLI picks Agg; a notebook its inline one)
-
-    paper_srgb = np.clip(np.asarray(colorimetry.srgb_encode(jnp.asarray(paper, float))), 0, 1)
+    paper_srgb = colorimetry.to_display(paper)
     n, m = len(pigments), len(coats)
     cell, pad = 40, 8  # pixels of a half swatch, gap
     width = m * (cell + pad) + pad
@@ -69,7 +67,7 @@ def draw_chart(
             img[y0 + cell + pad // 2 : y0 + 2 * cell + pad // 2, x0 : x0 + cell] = over_black[j]
     dpi = 100
     label_w = 170
-    fig = plt.figure(figsize=((width + label_w) / dpi, (height + 56) / dpi), dpi=dpi)
+    fig = Figure(figsize=((width + label_w) / dpi, (height + 56) / dpi), dpi=dpi)  # not pyplot: no backend
     ax = fig.add_axes([label_w / (width + label_w), 0, width / (width + label_w), height / (height + 56)])
     ax.imshow(img, interpolation="nearest", aspect="equal")
     ax.set_xticks([pad + j * (cell + pad) + cell / 2 for j in range(m)])
@@ -91,12 +89,5 @@ def save_chart(
     coats: Sequence[float] = DEFAULT_COATS,
     paper: Sequence[float] = DEFAULT_PAPER,
 ) -> None:
-    """Draw the swatch chart and write it as a PNG, atomically."""
-    import matplotlib.pyplot as plt
-
-    fig = draw_chart(pigments, coats, paper)
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", facecolor="white")
-    finally:
-        plt.close(fig)
+    """Draw the swatch chart and write it as the PNG or JPEG its extension names, atomically."""
+    save_figure(path, draw_chart(pigments, coats, paper), facecolor="white")

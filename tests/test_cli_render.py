@@ -110,7 +110,9 @@ def test_bad_scenes_are_refused_in_one_line(run_cli, tmp_path, change, field):
         (["--size", "0x10"], "--size"),
         (["--size", "100000x10"], "--size"),
         (["--size", "big"], "--size"),
-        (["-o", "out.jpg"], "--output"),
+        (["-o", "out.tif"], "--output"),
+        (["-o", "out.jpg", "--bits", "16"], "--output"),
+        (["-o", "out.jpg", "--alpha"], "--output"),
     ],
 )
 def test_bad_options_are_refused_in_one_line(run_cli, tmp_path, args, field):

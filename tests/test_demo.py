@@ -27,6 +27,8 @@ def test_demo_end_to_end_cold(run_cli, tmp_path):
         assert name.split("/")[0] in r.stdout
     with Image.open(out / "report.png") as im:
         assert im.size[0] >= 1200 and im.size[1] >= 800
+    assert (out / ".diffwash-demo").is_file()  # its marker: a later demo may replace this folder, and only this
+    assert not list(tmp_path.glob(".out.*"))  # written as a temporary folder, renamed: nothing left beside it
 
     truth = json.loads((out / "card.json").read_text())["meta"]["pigment"]
     fitted = json.loads((out / "pigment.json").read_text())

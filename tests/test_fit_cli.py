@@ -188,7 +188,7 @@ def test_fit_swatch_usage_errors(run_cli, tmp_path, card):
 
 def test_fit_image_bad_input(run_cli, tmp_path):
     render_target(tmp_path, size=32)
-    Image.new("RGB", (40, 32)).save(tmp_path / "wide.png")
+    Image.new("RGB", (40, 32), (200, 120, 60)).save(tmp_path / "wide.png")  # in colour: a grey one is refused first
     r = run_cli("fit-image", "wide.png", "--scene", "start.json", "--fit", "gain", "-o", "out.json")
     assert r.returncode == 2 and r.stderr.count("\n") == 1
     assert "wide.png: is 40x32 pixels but the scene renders 32x32" in r.stderr

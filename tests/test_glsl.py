@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import diffwash
-from diffwash import lut, shading
+from diffwash import colorimetry, lut, shading
 from diffwash._glsl import TARGETS, functions_source, shader_sources
 from diffwash.pigments import Pigment
 from diffwash.shading import Params
@@ -180,7 +180,7 @@ def test_km_per_fragment_extreme_pigments(ctx):
 
 def _lut_textures(ctx, values, srgb):
     """Upload a LUT the way an engine does: top image row first, linear filtering, clamp to edge."""
-    data = lut.srgb_encode(values) if srgb else values
+    data = colorimetry.to_display(values) if srgb else values
     texs = []
     for k in range(values.shape[-1] // 3):
         t = _texture(ctx, data[..., 3 * k : 3 * k + 3])
@@ -205,7 +205,7 @@ def test_lut_lookup_matches_glaze(ctx, kind, srgb):
     got = got[..., :3].reshape(-1, 3)
     np.testing.assert_allclose(got, _expected_colour(p, t), atol=4e-4, rtol=0)
     # Displayed in 8 bits, the LUT and the exact glaze are the same image.
-    enc = lambda c: np.round(lut.srgb_encode(c) * 255)  # noqa: E731
+    enc = lambda c: np.round(colorimetry.to_display(c) * 255)  # noqa: E731
     assert np.abs(enc(got) - enc(_expected_colour(p, t))).max() <= 1
     for tex in texs:
         tex.release()

@@ -22,11 +22,11 @@ def test_png16_round_trip(tmp_path):
 def test_png8_round_trip_and_greyscale_alpha(tmp_path):
     img = np.linspace(0, 1, 4 * 5 * 4).reshape(4, 5, 4)
     write_png(tmp_path / "a.png", img, bits=8)
-    back, bits = read_image(tmp_path / "a.png")
+    back, bits = read_image(tmp_path / "a.png", opaque=False)
     assert bits == 8 and back.shape == (4, 5, 3)  # alpha dropped
     np.testing.assert_allclose(back, img[..., :3], atol=0.5 / 255 + 1e-12)
     write_png(tmp_path / "g.png", img[..., 0], bits=8)
-    back, _ = read_image(tmp_path / "g.png")
+    back, _ = read_image(tmp_path / "g.png", colour=False)
     assert back.shape == (4, 5, 3) and np.allclose(back[..., 0], back[..., 2])
 
 

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from PIL import Image
 
 import diffwash
-from diffwash import lut
+from diffwash import colorimetry, lut
 from diffwash.pigments import Pigment
 from diffwash.shading import Params
 
@@ -194,13 +194,13 @@ def test_png_orientation_read_independently(tmp_path, tables):
     up = (np.asarray(params.unlit.K), np.asarray(params.unlit.S))
     for (row, col), (w, u) in {(0, 16): (table.wash_max, 0), (10, 0): (0, table.unlit_max), (10, 16): (table.wash_max, table.unlit_max)}.items():
         colour, _, _ = glaze_ref(wp, up, np.asarray(params.paper), w, u)
-        np.testing.assert_allclose(img[row, col], lut.srgb_encode(colour), atol=0.6 / 255)
+        np.testing.assert_allclose(img[row, col], colorimetry.to_display(colour), atol=0.6 / 255)
 
 
 def test_nothing_half_written(tmp_path, tables):
-    # The sidecar's name is taken by a folder, so the last file cannot be renamed into place.
+    # The sidecar's name is taken by a folder: refused before anything is written.
     (tmp_path / "lut.json").mkdir()
-    with pytest.raises(OSError):
+    with pytest.raises(diffwash.DiffwashError, match=r"lut\.json: is a folder"):
         lut.save(tmp_path / "lut.png", tables["colour"])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lut.json"]
     assert not (tmp_path / "lut.png").exists()

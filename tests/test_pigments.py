@@ -103,14 +103,20 @@ def test_missing_pigment_file(tmp_path):
         pigments.load(tmp_path / "nope.json")
 
 
-def test_pigment_is_a_pytree_with_K_and_S_leaves():
+def test_pigment_is_a_pytree_of_its_coefficients_with_a_static_label():
     import jax
 
     p = pigments.load("Cadmium Red")
     leaves = jax.tree_util.tree_leaves(p)
-    assert len(leaves) == 2
+    # K, S, and Curtis et al.'s density, staining and granularity (differentiable, for the watercolour look).
+    assert len(leaves) == 5
+    assert np.allclose(leaves[0], p.K) and np.allclose(leaves[1], p.S) and leaves[2:] == [0.02, 1.0, 0.63]
     doubled = jax.tree_util.tree_map(lambda x: 2 * x, p)
-    assert doubled.name == "Cadmium Red" and np.allclose(doubled.K, 2 * p.K)
+    assert doubled.name == "Cadmium Red" and np.allclose(doubled.K, 2 * p.K) and doubled.granularity == 1.26
+    # The label is static metadata: compiled kernels take the pigment without it.
+    assert pigments.unlabelled({"wash": p})["wash"].name == "pigment"
+    assert jax.tree_util.tree_structure(pigments.unlabelled(p)) == jax.tree_util.tree_structure(
+        pigments.unlabelled(pigments.load("Cerulean Blue")))
 
 
 def test_save_round_trip(tmp_path):

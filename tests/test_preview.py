@@ -6,7 +6,7 @@ import pytest
 
 import diffwash
 from diffwash import lut, preview, shading
-from diffwash.lut import srgb_encode
+from diffwash.colorimetry import to_display as srgb_encode
 
 from conftest import DATA
 

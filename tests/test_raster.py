@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import diffwash
-from diffwash._raster import _jobs, pad_size, rasterize_arrays
+from diffwash import ops
+from diffwash._rasterize import WINDOW, _jobs, pad_size
 from diffwash._scene import Mesh, Scene
 
 N_TRI = 10  # fixed triangle count: the kernels compile once for all examples
@@ -179,35 +180,76 @@ def test_pad_size(n):
 
 
 def test_jobs_cover_each_box_exactly_once():
-    from diffwash._raster import _WINDOW
-
     rng = np.random.default_rng(3)
     nx = rng.integers(1, 40, 40)
     centres = np.where(rng.random(40) < 0.8, nx * rng.integers(1, 40, 40), 0)
-    info = np.stack([rng.integers(0, 50, 40), rng.integers(0, 50, 40), nx, centres], 1).astype(np.int32)
-    n_jobs = int(np.sum(-(-centres // _WINDOW)))
-    tri, first = _jobs(info[:, 3], pad_size(n_jobs))
+    boxes = np.stack([rng.integers(0, 50, 40), rng.integers(0, 50, 40), nx, centres], 1).astype(np.int32)
+    n_jobs = int(np.sum(-(-centres // WINDOW)))
+    tri, first, complete = (np.asarray(x) for x in _jobs(boxes, pad_size(n_jobs)))
+    assert complete
     seen: dict[int, list] = {}
     for t, f in zip(tri, first):
-        for k in range(f, min(f + _WINDOW, info[t, 3])):
+        for k in range(f, min(f + WINDOW, boxes[t, 3])):
             seen.setdefault(int(t), []).append(k)
     assert set(seen) == set(np.flatnonzero(centres).tolist())
     for t, ks in seen.items():
-        assert sorted(ks) == list(range(info[t, 3]))  # every pixel centre of the box once
+        assert sorted(ks) == list(range(boxes[t, 3]))  # every pixel centre of the box once
+    # Too small a budget is reported, not silently passed over.
+    assert not bool(_jobs(boxes, n_jobs - 1)[2])
 
 
-def test_rasterize_arrays_matches_rasterize():
-    scene = diffwash.load_scene(_SPHERE, size=(40, 30))
+def _sphere_op_inputs(width=40, height=30):
+    scene = diffwash.load_scene(_SPHERE, size=(width, height))
+    clip = ops.clip_positions(scene.mesh.vertices, scene.camera.view_projection(width / height))
+    return scene, clip
+
+
+def test_array_op_matches_scene_rasterize_and_covered_lists_the_covered_pixels():
+    scene, clip = _sphere_op_inputs()
     vis = diffwash.rasterize(scene)
-    vp = np.asarray(scene.camera.view_projection(40 / 30))
-    ids, depth = rasterize_arrays(scene.mesh.vertices, scene.mesh.faces, vp, float(scene.camera.near),
-                                  float(scene.camera.far), 40, 30, True)  # fmt: skip
+    raster = ops.rasterize(clip, scene.mesh.faces, (30, 40), cull_backfaces=True)
+    ids = np.asarray(raster.tri_id)
+    assert bool(raster.complete)
     np.testing.assert_array_equal(ids, np.asarray(vis.tri_id))
     # The compacted pixel list is exactly the covered pixels, padded past the image.
     pixels = np.asarray(vis.pixels)
     real = pixels[pixels < 40 * 30]
     np.testing.assert_array_equal(real, np.flatnonzero(ids.reshape(-1) >= 0))
     np.testing.assert_array_equal(np.asarray(vis.pixel_tri)[: len(real)], ids.reshape(-1)[real])
+    assert len(pixels) == pad_size(len(real))
+    # The device's stream compaction (traced, or a given size) lists the same pixels.
+    p2, t2 = ops.covered(raster.tri_id, size=len(pixels))
+    np.testing.assert_array_equal(np.asarray(p2), pixels)
+    np.testing.assert_array_equal(np.asarray(t2), np.asarray(vis.pixel_tri))
+
+
+def test_rasterize_under_jit_and_vmap_matches_concrete_calls():
+    """Traced geometry: no host round trip, same answer; a batch of views through vmap."""
+    import jax
+    import jax.numpy as jnp
+
+    scene, _ = _sphere_op_inputs()
+    faces = jnp.asarray(scene.mesh.faces)
+
+    def raster(vertices, eye):
+        cam = dataclasses.replace(scene.camera, eye=eye)
+        clip = ops.clip_positions(vertices, cam.view_projection(40 / 30))
+        return ops.rasterize(clip, faces, (30, 40), cull_backfaces=True).tri_id
+
+    eyes = jnp.asarray([[0.0, 0.0, 3.5], [0.6, 0.3, 3.5], [-0.9, 0.5, 3.3]])  # within the near and far planes
+    v = jnp.asarray(scene.mesh.vertices)
+    batched = np.asarray(jax.jit(jax.vmap(raster, in_axes=(None, 0)))(v, eyes))
+    for i, eye in enumerate(eyes):
+        one = np.asarray(raster(v, eye))
+        np.testing.assert_array_equal(batched[i], one)
+        np.testing.assert_array_equal(np.asarray(jax.jit(raster)(v, eye)), one)
+    assert (batched >= 0).sum(axis=(1, 2)).min() > 100
+
+
+def test_a_small_fragment_budget_says_so():
+    scene, clip = _sphere_op_inputs()
+    raster = ops.rasterize(clip, scene.mesh.faces, (30, 40), cull_backfaces=True, capacity=64)
+    assert not bool(raster.complete)
 
 
 @pytest.mark.parametrize("backfaces", ["auto", "cull", "both"])

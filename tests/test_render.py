@@ -13,8 +13,7 @@ import pytest
 
 import diffwash
 from diffwash import shading
-from diffwash._barycentric import barycentrics
-from diffwash._raster import clip_positions, view_projection
+from diffwash.ops import barycentrics, clip_positions
 from diffwash._render import _cache, clear_visibility_cache
 from diffwash._scene import Mesh, Scene
 
@@ -51,7 +50,7 @@ def _reference_pixels(scene, params):
     px = np.asarray(vis.pixels)
     real = px < scene.width * scene.height
     tri = np.asarray(vis.pixel_tri)[real]
-    clip = clip_positions(jnp.asarray(scene.mesh.vertices), view_projection(scene.camera, scene.width / scene.height))
+    clip = clip_positions(jnp.asarray(scene.mesh.vertices), scene.camera.view_projection(scene.width / scene.height))
     bary, front = barycentrics(clip, jnp.asarray(scene.mesh.faces), jnp.asarray(tri), jnp.asarray(px[real]),
                                scene.width, scene.height)  # fmt: skip
     bary = np.asarray(bary)

@@ -125,10 +125,9 @@ def test_open_mesh_back_faces_match_opengl(gl, shading):
     assert not scene.cull_backfaces
     vis = diffwash.rasterize(scene)
     # Both sides really show: some visible triangles face away from the camera.
-    from diffwash._barycentric import barycentrics
-    from diffwash._raster import clip_positions, view_projection
+    from diffwash.ops import barycentrics, clip_positions
 
-    clip = clip_positions(np.asarray(scene.mesh.vertices), view_projection(scene.camera, 1.0))
+    clip = clip_positions(np.asarray(scene.mesh.vertices), scene.camera.view_projection(1.0))
     _, front = barycentrics(clip, np.asarray(scene.mesh.faces), vis.pixel_tri, vis.pixels, 160, 160)
     real = np.asarray(vis.pixels) < 160 * 160
     assert 0.1 < np.mean(~np.asarray(front)[real]) < 0.9

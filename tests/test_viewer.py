@@ -98,7 +98,7 @@ def page(browser, exported):
 
 def rendered(scene, mode):
     """`diffwash render` of the scene, as 8-bit sRGB."""
-    from diffwash.lut import srgb_encode
+    from diffwash.colorimetry import to_display as srgb_encode
 
     scene = diffwash.load_scene(scene.path, shading=mode)
     return np.round(srgb_encode(np.asarray(diffwash.render(scene))) * 255) / 255

@@ -4,7 +4,9 @@ Each subcommand lives in its own module here with `NAME`, `HELP`,
 `add_arguments(parser)` and `run(args) -> int`; every one calls a public
 function of the library. Errors caused by the user's input print one line
 (`diffwash: error: FILE: FIELD: problem`) and exit with status 2; work that
-fails (a fit that does not converge) exits with 1.
+fails (a fit that does not converge, a full disk) exits with 1, also with one
+line and no traceback. Outputs are written to a temporary name and renamed,
+so a failure leaves nothing half-written.
 """
 
 from __future__ import annotations
@@ -15,10 +17,12 @@ import os
 import sys
 from collections.abc import Sequence
 
-from .._errors import DiffwashError
-from .._version import __version__
+import jax
 
-__all__ = ["main", "COMMANDS"]
+from .. import DiffwashError, __version__
+from .. import io as dio
+
+__all__ = ["main", "COMMANDS", "add_image_limit"]
 
 #: Subcommand modules, in the order `diffwash --help` lists them.
 COMMANDS = (
@@ -35,8 +39,6 @@ def enable_compilation_cache() -> None:
     folder = os.environ.get("DIFFWASH_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "diffwash", "jax"))
     if folder.lower() in ("", "off", "0", "none"):
         return
-    import jax
-
     try:
         os.makedirs(folder, exist_ok=True)
     except OSError:
@@ -46,8 +48,22 @@ def enable_compilation_cache() -> None:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (exit status 2)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def add_image_limit(p: argparse.ArgumentParser) -> None:
+    """The `--max-image-pixels` option of the commands that read photos or target images."""
+    p.add_argument("--max-image-pixels", metavar="N", default=None,
+                   help=f"read images of up to N pixels (default: ${dio.PIXELS_ENV}, else {dio.MAX_IMAGE_PIXELS:,}); larger "
+                        f"ones are refused from their header, before decoding")  # fmt: skip
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="diffwash",
         description="A differentiable watercolour renderer: Kubelka-Munk pigment glazes over paper, "
         "fitted to photos and images, baked into a real-time lookup texture.",
@@ -71,12 +87,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args._uses_jax:
             enable_compilation_cache()
-        return int(args._run(args) or 0)
+        with dio.image_pixel_limit(getattr(args, "max_image_pixels", None), "--max-image-pixels"):
+            return int(args._run(args) or 0)
     except DiffwashError as e:
         print(f"diffwash: error: {e}", file=sys.stderr)
         return e.exit_code
+    except BrokenPipeError:
+        return 0
+    except MemoryError:
+        print("diffwash: error: out of memory", file=sys.stderr)
+        return 1
+    except OSError as e:  # not met in a writer (those say which file): the file system failed under us
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"diffwash: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("diffwash: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:
-        return 0

@@ -4,19 +4,21 @@ frame, and write a one-page report."""
 
 from __future__ import annotations
 
+from .. import demo
+
 NAME = "demo"
 HELP = "run the whole product on bundled data"
 
 
 def add_arguments(p) -> None:
-    p.add_argument("-o", "--output", default="diffwash-demo", metavar="DIR", help="output folder (default: %(default)s)")
+    p.add_argument("-o", "--output", default="diffwash-demo", metavar="DIR",
+                   help="output folder: new, empty, or a previous demo's, which is replaced (default: %(default)s)")
+    p.add_argument("--force", action="store_true",
+                   help="write into a folder that holds other files (those of the demo's names are replaced)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
 
 
 def run(args) -> int:
-    from ..demo import main_summary
-    from ..demo import run as run_demo
-
-    res = run_demo(args.output, progress=not args.quiet)
-    main_summary(res)
+    res = demo.run(args.output, progress=not args.quiet, force=args.force)
+    demo.main_summary(res)
     return 0

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from . import add_image_limit
+
 NAME = "fit-image"
 HELP = "fit scene parameters to target images"
 USES_JAX = True
@@ -35,6 +37,7 @@ def add_arguments(p) -> None:
                    help="also write a picture: target, start, fitted, difference, loss curve")  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="do not print the loss at each step")
     p.add_argument("--allow-unconverged", action="store_true", help="write the result even if the fit did not converge")
+    add_image_limit(p)
 
 
 def run(args) -> int:
@@ -43,7 +46,9 @@ def run(args) -> int:
     import numpy as np
 
     from .._errors import DiffwashError, FailureError
-    from .._scene import load_scene
+    from .._io import atomic_paths, refuse_overwriting_inputs
+    from .._scene import load_scene, referenced_files
+    from ..fit import save_image_report
     from ..fit._image import fit_image, load_cameras, parse_fit_list
 
     t0 = time.perf_counter()
@@ -57,6 +62,8 @@ def run(args) -> int:
         raise DiffwashError(f"must be a .png file, got {report.name!r}", field="--report")
     if args.max_steps < 1:
         raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
+    scene_files = [f for s in args.scene for f in (s, *referenced_files(s))]
+    refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.targets, *scene_files, args.cameras])
     names = parse_fit_list(args.fit)
     scenes = [load_scene(s) for s in args.scene]
     if args.cameras:
@@ -85,12 +92,12 @@ def run(args) -> int:
     if not fit.converged and not args.allow_unconverged:
         raise FailureError(f"the fit did not converge ({fit.message}); nothing was written (use --allow-unconverged "
                            f"to write it anyway, or raise --max-steps)")  # fmt: skip
-    fit.save(out)
+    with atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+        fit.save(out_tmp)
+        if report is not None:
+            save_image_report(report_tmp, fit, args.targets, scenes)
     print(f"wrote {out}")
     if report is not None:
-        from ..fit import save_image_report
-
-        save_image_report(report, fit, args.targets, scenes)
         print(f"wrote {report}")
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from . import add_image_limit
+
 NAME = "fit-swatch"
 HELP = "fit pigment K and S to a swatch-card photo or a table of measured colours"
 USES_JAX = True
@@ -28,8 +30,9 @@ def add_arguments(p) -> None:
                    help="table: the plain fit (thickness = amount, sRGB residuals, no prior) instead of the model")
     p.add_argument("--thickness", choices=("power", "linear"),
                    help="table: thickness = amount**gamma (power, default) or amount")  # fmt: skip
-    p.add_argument("--loss", choices=("de2000", "cie94", "lab", "srgb"),
-                   help="residuals (default: cie94 for photos, de2000 for tables)")
+    p.add_argument("--loss", choices=("noise", "de2000", "cie94", "lab", "srgb"),
+                   help="residuals (default: noise for photos -- weighted by each patch's noise, with intervals -- "
+                        "de2000 for tables)")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"),
@@ -38,6 +41,7 @@ def add_arguments(p) -> None:
     p.add_argument("--max-steps", type=int, default=1000, metavar="N",
                    help="Levenberg-Marquardt steps at most (default: %(default)s)")  # fmt: skip
     p.add_argument("--allow-unconverged", action="store_true", help="write the result even if the fit did not converge")
+    add_image_limit(p)
 
 
 def _srgb8(linear) -> str:
@@ -61,11 +65,13 @@ def _check_output(path: str, suffix: str, flag: str) -> Path:
 
 def run(args) -> int:
     from .._errors import DiffwashError
+    from .._io import refuse_overwriting_inputs
 
     out = _check_output(args.output, ".json", "--output")
     report = _check_output(args.report, ".png", "--report") if args.report else None
     if args.max_steps < 1:
         raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
+    refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.photos, *(args.layout or []), args.table])
     if args.table is not None:
         if args.photos or args.layout:
             raise DiffwashError("give either --table or photos with --layout, not both", field="--table")
@@ -91,12 +97,18 @@ def _finish(converged: bool, allow: bool, what: str) -> None:
                            f"or raise --max-steps)")  # fmt: skip
 
 
+def _wrote(*paths: Path | None) -> None:
+    for p in paths:
+        if p is not None:
+            print(f"wrote {p}")
+
+
 def _run_photos(args, out: Path, report: Path | None) -> int:
     import time
 
     import numpy as np
 
-    from .._io import read_image
+    from .._io import atomic_paths, read_image
     from ..fit import fit_swatches
     from ..fit._photo import read_layout
     from ..fit import save_swatch_report
@@ -104,29 +116,33 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
 
     t0 = time.perf_counter()
     model = SWATCH_MODEL
-    if args.loss is not None:
-        model = FitModel(thickness="linear", loss=args.loss, prior=SWATCH_MODEL.prior)
+    if args.loss is not None and args.loss != SWATCH_MODEL.loss:
+        model = FitModel(thickness="linear", loss=args.loss)
     fit = fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps)
     p = fit.pigment
     print(f"{p.name}: {len(fit.patches)} patches from {len(args.photos)} photo{'s' if len(args.photos) > 1 else ''}")
     print(f"  {'coats':>5}  {'ground':6}  {'observed sRGB':>15}  {'fitted sRGB':>15}  {'CIEDE2000':>9}")
     for q in fit.patches:
         flag = "  (clipped: a bound)" if any(q.bound) else ""
+        if q.floor and any(q.floor):
+            flag += "  (" + ", ".join(c for c, f in zip(("red", "green", "blue"), q.floor) if f) + " at the noise floor)"
         print(f"  {q.coats:5g}  {q.ground:6}  {_srgb8(q.observed):>15}  {_srgb8(q.fitted):>15}  {q.delta_e:9.2f}{flag}")
     print(f"  K = {np.round(p.K, 4).tolist()}, S = {np.round(p.S, 4).tolist()} per coat")
-    status = "converged" if fit.converged else "NOT converged"
+    for line in fit.interval_lines():
+        print(f"  {line}")
+    status = "converged" if fit.converged else "did not converge"
     print(f"  mean CIEDE2000 {fit.mean_delta_e:.2f}; Levenberg-Marquardt {status} in {fit.iterations} steps")
     for c in fit.calibrations:
         for note in c.notes:
             print(f"  note: {note}")
     print(f"  {fit.identifiability}")
     _finish(fit.converged, args.allow_unconverged, "the fit")
-    fit.save(out)
-    print(f"wrote {out}")
-    if report is not None:
-        photo, _ = read_image(args.photos[0])
-        save_swatch_report(report, fit, photo, read_layout(args.layout[0]))
-        print(f"wrote {report}")
+    with atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+        fit.save(out_tmp)
+        if report is not None:
+            photo, _ = read_image(args.photos[0])
+            save_swatch_report(report_tmp, fit, photo, read_layout(args.layout[0]))
+    _wrote(out, report)
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0
 
@@ -136,11 +152,17 @@ def _run_table(args, out: Path, report: Path | None) -> int:
 
     import numpy as np
 
+    from .._io import atomic_paths
     from ..fit import FitModel, fit_table, read_table
     from ..fit._kmfit import PLAIN
     from ..fit import save_table_report
 
     t0 = time.perf_counter()
+    if args.loss == "noise":
+        from .._errors import DiffwashError
+
+        raise DiffwashError("a table has no pixels to estimate noise from: choose de2000, cie94, lab or srgb",
+                            field="--loss")  # fmt: skip
     base = PLAIN if args.plain else FitModel()
     model = FitModel(
         thickness=args.thickness or base.thickness,
@@ -162,10 +184,10 @@ def _run_table(args, out: Path, report: Path | None) -> int:
     print(f"  mean CIEDE2000 over all rows: {allde.mean():.2f}")
     bad = [fit.names[i] for i in range(len(fit.pigments)) if not fit.converged[i]]
     _finish(not bad, args.allow_unconverged, f"the fit of {', '.join(bad)}")
-    fit.save(out)
-    print(f"wrote {out}")
-    if report is not None:
-        save_table_report(report, fit, table)
-        print(f"wrote {report}")
+    with atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+        fit.save(out_tmp)
+        if report is not None:
+            save_table_report(report_tmp, fit, table)
+    _wrote(out, report)
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0

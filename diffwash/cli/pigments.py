@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import sys
 
+from .. import pigments, swatches
+
 NAME = "pigments"
 HELP = "list the pigment library"
 USES_JAX = False
@@ -21,15 +23,11 @@ def _swatch(rgb) -> str:
 
 
 def run(args) -> int:
-    from .. import pigments
-
     lib = pigments.library(args.library)
     if args.json:
         print(json.dumps({"pigments": [p.to_dict() for p in lib.values()]}, indent=2))
         return 0
     colour = sys.stdout.isatty()
-    if colour:
-        from ..swatches import swatch_colours
 
     width = max(len("pigment"), *(len(n) for n in lib))
     head = f"{'pigment':<{width}}  {'K (r g b)':<20}  {'S (r g b)':<22}  {'density':>7}  {'staining':>8}  {'granularity':>11}"
@@ -40,6 +38,6 @@ def run(args) -> int:
         S = " ".join(f"{v:<6g}" for v in p.S)
         line = f"{name:<{width}}  {K:<20}  {S:<22}  {p.density:>7g}  {p.staining:>8g}  {p.granularity:>11g}"
         if colour:
-            line += "  " + _swatch(swatch_colours(p, coats=(1.0,))[0][0])
+            line += "  " + _swatch(swatches.swatch_colours(p, coats=(1.0,))[0][0])
         print(line)
     return 0

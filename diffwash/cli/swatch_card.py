@@ -8,6 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .. import DiffwashError, pigments, swatchcard
+from .. import io as dio
+
 NAME = "swatch-card"
 HELP = "make a synthetic swatch-card photo and its layout (for fit-swatch)"
 USES_JAX = True
@@ -26,15 +29,11 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from .. import pigments
-    from .._errors import DiffwashError
-    from ..swatchcard import IDEAL, CameraEffects, make_swatch_card, save_swatch_card
-
     out = Path(args.output)
-    if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
-        raise DiffwashError(f"must be a .jpg, .jpeg or .png file, got {out.name!r}", field="--output")
-    if args.bits == 16 and out.suffix.lower() != ".png":
-        raise DiffwashError("16 bits needs a .png photo", field="--bits")
+    dio.image_format_for(out, bits=args.bits, field="--output")
+    layout = Path(args.layout) if args.layout else out.with_suffix(".json")
+    pigment_file = [args.pigment] if Path(args.pigment).is_file() else []
+    dio.refuse_overwriting_inputs({"--output": out, "--layout": layout}, pigment_file)
     try:
         coats = [float(c) for c in args.coats.split(",")]
     except ValueError:
@@ -42,11 +41,10 @@ def run(args) -> int:
     if not coats or any(not (0 < c < 1e3) for c in coats):
         raise DiffwashError(f"must be numbers of coats > 0, got {args.coats!r}", field="--coats")
     pigment = pigments.load(args.pigment)
-    effects = IDEAL if args.ideal else CameraEffects()
-    card = make_swatch_card(pigment, coats=coats, black=not args.no_black, effects=effects, seed=args.seed)
-    layout = Path(args.layout) if args.layout else out.with_suffix(".json")
+    effects = swatchcard.IDEAL if args.ideal else swatchcard.CameraEffects()
+    card = swatchcard.make_swatch_card(pigment, coats=coats, black=not args.no_black, effects=effects, seed=args.seed)
     card.layout["name"] = pigment.name
-    save_swatch_card(card, out, layout, bits=args.bits)
+    swatchcard.save_swatch_card(card, out, layout, bits=args.bits)
     h, w = card.photo.shape[:2]
     print(f"wrote {out} ({w}x{h}, {pigment.name} at {', '.join(f'{c:g}' for c in coats)} coats"
           f"{'' if args.no_black else ' over paper and black'}) and {layout}")  # fmt: skip

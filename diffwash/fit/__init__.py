@@ -3,7 +3,10 @@
 Three fits, each a thin layer of data handling over optimistix least squares:
 
 - `fit_swatches(photo, layout)`: one pigment's K and S (per coat) from photos of its swatch card
-  (`diffwash.swatchcard` makes synthetic ones); `diffwash fit-swatch PHOTO --layout LAYOUT.json`.
+  (`diffwash.swatchcard` makes synthetic ones); `diffwash fit-swatch PHOTO --layout LAYOUT.json`. Each
+  patch is weighed by its own noise and the calibration's uncertainty is carried along, so the result
+  has calibrated intervals (`SwatchFit.intervals`, `SwatchFit.predict_interval`) and says which channels
+  the photo only bounds (the camera's noise floor, clipping).
 - `fit_table(csv)`: every pigment of a table of measured colours in one call (`jax.vmap`, or a loop);
   `diffwash fit-swatch --table MEASUREMENTS.csv`.
 - `fit_image(targets, scenes, fit=...)`: named scene parameters (K, S, gain, bias, thickness

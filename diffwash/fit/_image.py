@@ -48,6 +48,7 @@ from typing import Any
 
 import equinox as eqx
 import jax
+import jax.flatten_util
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
@@ -55,8 +56,7 @@ import optimistix as optx
 from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import read_image, read_json
-from .._raster import Visibility, rasterize
-from .._render import Surface, surface, surface_thicknesses
+from .._render import Surface, Visibility, rasterize, surface, surface_thicknesses
 from .. import shading
 from .._scene import Scene, load_scene, parse_scene, save_scene
 from ..pigments import Pigment
@@ -393,6 +393,7 @@ def fit_image(
     max_steps: int = 100,
     rtol: float | None = None,
     atol: float | None = None,
+    gtol: float | None = None,
     progress: bool | Callable[[int, float], None] = False,
 ) -> ImageFit:
     """Fit scene parameters to target images.
@@ -409,13 +410,16 @@ def fit_image(
     - `loss`: `"linear"` (linear RGB) or `"lab"` (CIELAB).
     - `solver`: `"lm"` (Levenberg-Marquardt), `"gauss-newton"`, `"dogleg"` or `"bfgs"`.
     - `max_steps`: solver steps at most.
-    - `rtol`, `atol`: the solver's tolerances (default 1e-6, or 1e-4 in float32).
+    - `rtol`, `atol`: the solver's step tolerances (default 1e-6, or 1e-4 in float32).
+    - `gtol`: the stationarity tolerance (default as `rtol`): the fit has converged
+      when no parameter direction has a cosine above `gtol` with the residuals.
     - `progress`: print the loss at each step (True), or call `progress(step, loss)`.
 
     **Returns:**
 
-    An `ImageFit` (its `save` writes the fitted scene). Not converging is
-    reported in the result (`converged`, `message`), not raised.
+    An `ImageFit` (its `save` writes the fitted scene). Not converging (the
+    solver's step test and the stationarity test both unmet after `max_steps`)
+    is reported in the result (`converged`, `message`), not raised.
     """
     t_start = time.perf_counter()
     names = parse_fit_list(fit)
@@ -452,7 +456,7 @@ def fit_image(
     y0 = {k: jnp.asarray(v, dtype) for k, v in _encode(base, free).items()}
     tol = 1e-6 if dtype == jnp.float64 else 1e-4
     opt = _make_solver(solver, rtol if rtol is not None else tol, atol if atol is not None else tol)
-    y, history, steps, result, r = _iterate(opt, y0, problem, max_steps, progress)
+    y, history, steps, result, r = _iterate(opt, y0, problem, max_steps, progress, gtol if gtol is not None else tol)
     converged = not isinstance(result, str) and bool(result == optx.RESULTS.successful)
     message = "converged" if converged else (result if isinstance(result, str) else optx.RESULTS[result])
     params = _decode_jit(y, base, light_length)
@@ -492,7 +496,32 @@ def _step(solver, y, problem, state):
     fn = _objective(solver)
     y, state, _ = solver.step(fn, y, problem, {}, state, frozenset())
     done, result = solver.terminate(fn, y, problem, {}, state, frozenset())
-    return y, state, done, result, _state_loss(state)
+    # The stationarity test costs a Jacobian: only after a rejected step (an accepted one has the solver's test).
+    rejected = getattr(state, "num_steps_since_acceptance", jnp.array(1)) > 0
+    loss = _state_loss(state)
+    stationarity = jax.lax.cond(rejected, lambda: _stationarity(state).astype(loss.dtype),
+                                lambda: jnp.asarray(jnp.inf, loss.dtype))  # fmt: skip
+    return y, state, done, result, loss, stationarity
+
+
+def _stationarity(state: Any) -> Any:
+    r"""How far the last accepted point is from a stationary point, scale-free (0 at an optimum).
+
+    Least squares: the largest cosine between the residual vector and a column of its Jacobian,
+    $\max_j |J_j^T r| / (\|J_j\| \|r\|)$ (MINPACK's `gtol` test, Moré et al. 1980): at a minimum
+    the residuals are orthogonal to every direction the parameters can move them in. 0 when the
+    residuals vanish. Minimisers: the largest gradient component relative to the loss.
+    """
+    info = state.f_info
+    if hasattr(info, "residual"):
+        r = info.residual
+        J = info.jac.as_matrix()
+        g = J.T @ r
+        scale = jnp.linalg.norm(J, axis=0) * jnp.linalg.norm(r)
+        cos = jnp.abs(g) / jnp.where(scale > 0, scale, 1.0)
+        return jnp.where(jnp.linalg.norm(r) > 0, jnp.max(cos), 0.0)
+    g = jax.flatten_util.ravel_pytree(info.grad)[0]
+    return jnp.max(jnp.abs(g)) / jnp.maximum(jnp.abs(info.f), 1e-30)
 
 
 def _objective(solver):
@@ -514,46 +543,42 @@ def _state_loss(state: Any) -> Any:
     return jnp.asarray(info.f)
 
 
-def _iterate(solver, y0, problem, max_steps: int, progress) -> tuple[Any, list[float], int, Any, Any]:
-    """Step the solver by hand so that each step's loss can be shown."""
+def _iterate(solver, y0, problem, max_steps: int, progress, gtol: float) -> tuple[Any, list[float], int, Any, Any]:
+    """Step the solver by hand so that each step's loss can be shown.
+
+    Converged when the solver's own test passes (optimistix's Cauchy test: a small step in both the
+    parameters and the residuals, relative `rtol` plus absolute `atol`), or, after a rejected step, when
+    the last accepted point is stationary to within `gtol` (`_stationarity`: where float rounding keeps
+    the solver rejecting ever smaller steps at the minimum). Otherwise, after `max_steps`, not converged.
+    """
     state = _init(solver, y0, problem)
     y = y0
     history: list[float] = []
     report = progress if callable(progress) else (_print_progress if progress else None)
-    result = optx.RESULTS.successful
+    result: Any = f"did not converge in {max_steps} steps"
     steps = 0
     minimiser = not _is_least_squares(solver)
-    stalled = 0
     n_all = sum(int(v.target.size) for v in problem.views)
     n_used = sum(3 * int(np.sum(np.asarray(v.valid))) for v in problem.views)  # without the padding
     for steps in range(1, max_steps + 1):
-        y, state, done, result, loss = _step(solver, y, problem, state)
+        y, state, done, solver_result, loss, stationarity = _step(solver, y, problem, state)
         value = float(loss)
         if minimiser:  # 0.5 sum r^2 -> root mean square
             value = math.sqrt(max(2 * value / n_used, 0.0))
         else:
             value = value * math.sqrt(n_all / n_used)
-        # Steps that no longer lower the loss at all, while the solver shrinks its trust region:
-        # the loss has reached its floor (the fit's misfit, or float rounding), so more steps only
-        # chase noise.
-        stalled = stalled + 1 if history and abs(value - history[-1]) <= _STALL * history[-1] else 0
         history.append(value)
         if report is not None:
             report(steps, value)
         if bool(done):
+            result = solver_result
             break
-        if stalled >= 3 and not minimiser:
+        if float(stationarity) <= gtol:
             result = optx.RESULTS.successful
             break
-    else:
-        result = f"did not converge in {max_steps} steps"
     # The residuals at the solution, from the solver's own state (least-squares solvers keep them).
     residual = getattr(state.f_info, "residual", None) if not minimiser else None
     return y, history, steps, result, residual
-
-
-#: Relative change of the loss below which a step counts as not lowering it.
-_STALL = 1e-6
 
 
 def _print_progress(step: int, loss: float) -> None:

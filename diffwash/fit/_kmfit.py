@@ -53,7 +53,7 @@ JUDD_K2 = 0.596
 
 
 #: The residual kinds a `FitModel` knows.
-LOSSES = ("de2000", "cie94", "lab", "srgb")
+LOSSES = ("de2000", "cie94", "lab", "srgb", "noise")
 
 
 class FitModel(eqx.Module):
@@ -73,7 +73,12 @@ class FitModel(eqx.Module):
       figure of merit itself), `"cie94"` (CIE 1994: CIELAB differences with
       chroma and hue weighted by the observed chroma, as CIEDE2000 does but
       without its hue terms; about half the compile time), `"lab"` (CIELAB
-      differences) or `"srgb"` (display sRGB differences x 100; the plain fit).
+      differences), `"srgb"` (display sRGB differences x 100; the plain fit)
+      or `"noise"` (linear differences whitened by each row's covariance,
+      `Rows.whiten`: residuals in standard deviations of the measurement, so
+      that the sum of squares is a chi-square and the fit knows its noise;
+      with `Rows.gain_sd`, each photo's calibration gain is fitted too, within
+      its own uncertainty).
     - `prior`: weight of a weak prior pulling each pigment's three `log K` (and
       three `log S`) towards their mean, in CIEDE2000 units per unit of log
       (default 0.01: moving a coefficient by a factor e away from the others
@@ -90,7 +95,7 @@ class FitModel(eqx.Module):
     thickness: Literal["linear", "power"] = eqx.field(static=True, default="power")
     surface: Literal["none", "saunderson"] = eqx.field(static=True, default="none")
     k2: float = eqx.field(static=True, default=JUDD_K2)
-    loss: Literal["de2000", "cie94", "lab", "srgb"] = eqx.field(static=True, default="de2000")
+    loss: Literal["de2000", "cie94", "lab", "srgb", "noise"] = eqx.field(static=True, default="de2000")
     prior: float = eqx.field(static=True, default=0.01)
 
     def __check_init__(self):
@@ -128,6 +133,17 @@ class Rows(eqx.Module):
     - `lo`, `hi`: channels clipped at the bottom / top of their range (the
       observation is then a bound), shape (M, 3).
     - `weight`: weight of each row (0 for padding rows), shape (M,).
+    - `whiten`: for the `"noise"` loss, each row's whitening matrix, the inverse
+      of the Cholesky factor of its covariance (linear reflectance), shape (M, 3, 3).
+    - `photo`, `gain_sd`: for the `"noise"` loss, the photo each row was measured
+      in, shape (M,), and the standard deviation of each photo's calibrated
+      log gain per channel, shape (G, 3): the gains are then fitted as nuisance
+      parameters `log_gain` (G, 3) with that prior (a row's prediction is
+      multiplied by `exp(log_gain[photo])`).
+    - `on_black`, `black_sd`: for the `"noise"` loss, which rows lie on the black
+      band, shape (M,), and the standard deviation of its measured log
+      reflectance, shape (3,): fitted as the nuisance `log_black` (3,) with that
+      prior (those rows' ground is multiplied by `exp(log_black)`).
     """
 
     amount: Float[Array, "*p m"]
@@ -136,6 +152,11 @@ class Rows(eqx.Module):
     lo: Bool[Array, "*p m 3"]
     hi: Bool[Array, "*p m 3"]
     weight: Float[Array, "*p m"]
+    whiten: Float[Array, "*p m 3 3"] | None = None
+    photo: Any = None
+    gain_sd: Float[Array, "*p g 3"] | None = None
+    on_black: Any = None
+    black_sd: Float[Array, "*p 3"] | None = None
 
 
 def _thickness(model: FitModel, amount: Array, log_gamma: Array) -> Array:
@@ -204,12 +225,18 @@ def effective(pred: Array, obs: Array, lo: Array, hi: Array) -> Array:
     return jnp.where(lo, jnp.maximum(pred, obs), jnp.where(hi, jnp.minimum(pred, obs), pred))
 
 
-def row_errors(model: FitModel, pred: Array, obs: Array, lo: Array, hi: Array, obs_lab: Array | None = None) -> Array:
+def row_errors(model: FitModel, pred: Array, obs: Array, lo: Array, hi: Array, obs_lab: Array | None = None,
+               whiten: Array | None = None) -> Array:  # fmt: skip
     """Residuals per row, shape (M, 3): their squares sum to CIEDE2000^2 with `de2000` (CIE94^2 with `cie94`).
 
-    `obs_lab`, the observations in CIELAB, may be given precomputed.
+    `obs_lab`, the observations in CIELAB, may be given precomputed; `whiten`
+    (M, 3, 3) is needed by the `noise` loss.
     """
     eff = effective(pred, obs, lo, hi)
+    if model.loss == "noise":
+        if whiten is None:
+            raise ValueError("the 'noise' loss needs the rows' whitening matrices (Rows.whiten)")
+        return jnp.einsum("mij,mj->mi", whiten, eff - obs)
     if model.loss == "srgb":
         return 100 * (colorimetry.srgb_encode(eff) - colorimetry.srgb_encode(obs))
     lab_o = colorimetry.linear_srgb_to_lab(obs) if obs_lab is None else obs_lab
@@ -228,13 +255,25 @@ def residuals(theta: dict[str, Array], args: tuple) -> Array:
     """
     model, rows = args[0], args[1]
     obs_lab = args[2] if len(args) > 2 else None
-    pred = predict(model, theta, rows.amount, rows.ground)
-    r = row_errors(model, pred, rows.rgb, rows.lo, rows.hi, obs_lab) * jnp.sqrt(rows.weight)[:, None]
+    ground = rows.ground
+    if "log_black" in theta:  # the black band's nuisance reflectance (the noise loss)
+        ground = jnp.where(rows.on_black[:, None], ground * jnp.exp(theta["log_black"]), ground)
+    pred = predict(model, theta, rows.amount, ground)
+    if "log_gain" in theta:  # the calibration's nuisance gains (the noise loss)
+        pred = pred * jnp.exp(theta["log_gain"][rows.photo])
+    r = row_errors(model, pred, rows.rgb, rows.lo, rows.hi, obs_lab, rows.whiten) * jnp.sqrt(rows.weight)[:, None]
     parts = [r.ravel()]
     if model.prior > 0:
         for key in ("log_K", "log_S"):
             v = theta[key]
             parts.append(model.prior * (v - jnp.mean(v)))
+    if "log_gain" in theta:
+        parts.append((theta["log_gain"] / rows.gain_sd).ravel())
+    if "log_black" in theta:
+        parts.append(theta["log_black"] / rows.black_sd)
+    if len(args) > 3 and args[3] is not None:  # pins: (weights, values) on the flattened pigment parameters
+        w, v = args[3]
+        parts.append(w * (jnp.concatenate([theta["log_K"], theta["log_S"]]) - v))
     return jnp.concatenate(parts)
 
 
@@ -248,12 +287,16 @@ def _tolerance(dtype) -> float:
 COMPILER_OPTIONS = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
 
 
-def _solve_one(model: FitModel, max_steps: int, rows: Rows, theta0: dict[str, Array]):
-    """One pigment from one start: the solution, its loss, steps, convergence, Jacobian, prediction."""
+def _solve_one(model: FitModel, max_steps: int, rows: Rows, theta0: dict[str, Array], pins: Any = None):
+    """One pigment from one start: the solution, its loss, steps, convergence, Jacobian, prediction.
+
+    `pins`, `(weights, values)` of shape (6,) each, add residuals `weights * (theta - values)` on the
+    flattened `(log_K, log_S)`: a profile fit holds one parameter with a large weight.
+    """
     tol = _tolerance(rows.rgb.dtype)
     solver = optx.LevenbergMarquardt(rtol=tol, atol=tol)
     # The observations' CIELAB once, outside the solver (which traces the residuals several times).
-    args = (model, rows, colorimetry.linear_srgb_to_lab(rows.rgb))
+    args = (model, rows, colorimetry.linear_srgb_to_lab(rows.rgb), pins)
     sol = optx.least_squares(residuals, solver, theta0, args=args, max_steps=max_steps, throw=False)
     # The solver's own residuals and Jacobian at the accepted point: no second trace of the model.
     info = sol.state.f_info
@@ -267,8 +310,8 @@ def _solve_one(model: FitModel, max_steps: int, rows: Rows, theta0: dict[str, Ar
 def _compiled(model: FitModel, max_steps: int, batched: bool):
     """The jitted fit from one starting point (batched over pigments with `jax.vmap`)."""
 
-    def one(rows: Rows, theta0: dict[str, Array]):
-        return _solve_one(model, max_steps, rows, theta0)
+    def one(rows: Rows, theta0: dict[str, Array], pins: Any = None):
+        return _solve_one(model, max_steps, rows, theta0, pins)
 
     fn = jax.vmap(one) if batched else one
     return jax.jit(fn, compiler_options=COMPILER_OPTIONS)

@@ -47,8 +47,9 @@ from typing import Any
 import numpy as np
 
 from .._errors import DiffwashError
-from .._io import finite_number, read_json
+from .._io import check_float32, finite_number, read_json
 from ..shading import DEFAULT_PAPER
+from ._noise import JpegSteps, trimmed_mean, pixel_noise
 
 __all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "Calibration", "calibrate", "PatchStats",
            "patch_stats", "inner_box", "linearise"]  # fmt: skip
@@ -119,6 +120,8 @@ def _fail(msg: str, file: Any, fld: str | None) -> DiffwashError:
 def _box(value: Any, file: Any, fld: str, size: tuple[int, int] | None) -> Box:
     if not isinstance(value, list) or len(value) != 4 or not all(finite_number(v) for v in value):
         raise _fail(f"must be [x0, y0, x1, y1] (4 pixel coordinates), got {value!r}", file, fld)
+    for i, v in enumerate(value):
+        check_float32(v, file=file, field=f"{fld}[{i}]")
     if not all(float(v).is_integer() for v in value):
         raise _fail(f"must be whole pixel coordinates, got {value!r}", file, fld)
     x0, y0, x1, y1 = (int(v) for v in value)
@@ -186,6 +189,7 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
         coats = p["coats"]
         if not finite_number(coats) or coats <= 0:
             raise _fail(f"must be a number of coats > 0, got {coats!r}", file, f"{where}.coats")
+        check_float32(coats, file=file, field=f"{where}.coats")
         ground = p["ground"]
         if ground not in GROUNDS:
             raise _fail(f"unknown ground {ground!r} (must be 'paper' or 'black')", file, f"{where}.ground")
@@ -213,14 +217,6 @@ def inner_box(box: Box, fraction: float = 0.15, least: int = 2) -> Box:
     return Box(box.x0 + dx, box.y0 + dy, box.x1 - dx, box.y1 - dy)
 
 
-def _trimmed_mean(v: np.ndarray, trim: float = 0.2) -> np.ndarray:
-    """Mean of the middle (1 - 2 trim) of the values along axis 0, per column."""
-    v = np.sort(v, axis=0)
-    n = v.shape[0]
-    k = int(np.floor(trim * n))
-    return v[k : n - k].mean(axis=0) if n - 2 * k > 0 else np.median(v, axis=0)
-
-
 @dataclass(frozen=True)
 class Calibration:
     """The camera's response as calibrated from the paper.
@@ -243,11 +239,16 @@ class Calibration:
     size: tuple[int, int]
     norm: float = 1.0
     notes: list[str] = field(default_factory=list)
+    lack_of_fit: float = 0.0
 
     def light(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """Relative light at pixel centres (ys, xs) (1 on average over the paper box)."""
         w, h = self.size
         return np.exp(_poly(xs, ys, w, h, self.degree) @ self.coefficients) / self.norm
+
+    def uncertainty_at(self, box: Box) -> float:
+        """The light model's own relative uncertainty over `box` (its lack of fit to the bare paper)."""
+        return float(self.lack_of_fit)
 
     def to_dict(self) -> dict[str, Any]:
         return {"gain": self.gain.tolist(), "falloff_degree": self.degree, "falloff_pixels": self.pixels,
@@ -332,16 +333,11 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
         degree -= 1
     if degree < 2:
         notes.append(f"little bare paper visible around the boxes: light falloff modelled to degree {degree}")
+    size = _cell_size(H, W)
+    cell = (ys // size) * (W // size + 1) + xs // size  # the paper in patch-sized cells
     A = _poly(xs, ys, W, H, degree)
-    use = np.ones(len(y), bool)
-    coef = np.zeros(A.shape[1])
-    for _ in range(4):  # trimmed least squares: drop stains, shadows and stray marks
-        if use.sum() < A.shape[1]:
-            break
-        coef, *_ = np.linalg.lstsq(A[use], y[use], rcond=None)
-        r = y - A @ coef
-        mad = 1.4826 * np.median(np.abs(r[use] - np.median(r[use]))) + 1e-6
-        use = np.abs(r) < 3 * mad
+    coef, use = _trimmed_lstsq(A, y)
+    lack = _lack_of_fit(y - A @ coef, use, cell)
     cal = Calibration(gain=np.ones(3), coefficients=coef, degree=degree, pixels=int(use.sum()), light_range=(1.0, 1.0),
                       size=(W, H), norm=1.0, notes=notes)  # fmt: skip
     pys, pxs = np.mgrid[pb.y0 : pb.y1, pb.x0 : pb.x1]
@@ -349,19 +345,64 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
     gys, gxs = np.mgrid[0:H:step, 0:W:step]
     light = np.exp(_poly(gxs.ravel(), gys.ravel(), W, H, degree) @ coef) / norm
     flat = paper_lin / np.exp(_poly(pxs.ravel(), pys.ravel(), W, H, degree) @ coef)[:, None] * norm
-    gain = _trimmed_mean(flat) / layout.paper_reflectance
+    gain = trimmed_mean(flat) / layout.paper_reflectance
     return Calibration(gain=gain, coefficients=coef, degree=degree, pixels=int(use.sum()),
                        light_range=(float(light.min()), float(light.max())), size=(W, H), norm=norm,
-                       notes=notes)  # fmt: skip
+                       notes=notes, lack_of_fit=lack)  # fmt: skip
+
+
+def _cell_size(H: int, W: int) -> int:
+    """Side of the cells the light model's lack of fit is measured in (about a patch)."""
+    return max(16, min(H, W) // 8)
+
+
+def _trimmed_lstsq(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares that drops outliers (stains, shadows, stray marks): the coefficients and the samples kept."""
+    use = np.ones(len(y), bool)
+    coef = np.zeros(A.shape[1])
+    for _ in range(4):
+        if use.sum() < A.shape[1]:
+            break
+        Au = A[use]  # normal equations: a handful of columns, well conditioned on [-1, 1] coordinates
+        coef = np.linalg.solve(Au.T @ Au + 1e-12 * np.eye(A.shape[1]), Au.T @ y[use])
+        r = y - A @ coef
+        mad = 1.4826 * np.median(np.abs(r[use] - np.median(r[use]))) + 1e-6
+        use = np.abs(r) < 3 * mad
+    return coef, use
+
+
+def _cell_means(r: np.ndarray, cell: np.ndarray, least: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Mean residual and its noise variance per cell with at least `least` samples."""
+    _, inverse, counts = np.unique(cell, return_inverse=True, return_counts=True)
+    sums = np.bincount(inverse, r)
+    sq = np.bincount(inverse, r * r)
+    ok = counts >= least
+    mean = sums[ok] / counts[ok]
+    var = np.maximum(sq[ok] / counts[ok] - mean**2, 0) / counts[ok]
+    return mean, var
+
+
+def _lack_of_fit(r: np.ndarray, use: np.ndarray, cell: np.ndarray) -> float:
+    """The light model's error at the scale of a patch: the spread of its cell-mean residuals beyond their noise."""
+    mean, var = _cell_means(r[use], cell[use])
+    if len(mean) < 3:
+        return 0.0
+    return float(np.sqrt(max(np.mean(mean**2) - np.mean(var), 0.0)))
 
 
 @dataclass(frozen=True)
 class PatchStats:
     """Robust statistics of one box of the calibrated photo.
 
-    **Fields:** `rgb` (trimmed mean linear reflectance, (3,)), `spread` (robust
-    standard deviation, (3,)), `clipped_lo`, `clipped_hi` (fraction of the
-    pixels clipped at the bottom / top, per channel), `pixels` (pixels used).
+    **Fields:** `rgb` (the mean linear reflectance, (3,): a trimmed mean, or
+    near the noise floor the middle of `interval`), `cov` (its covariance,
+    (3, 3): pixel noise, code-value quantisation, the noise floor; see
+    `diffwash.fit._noise`), `spread` (robust standard deviation of the pixels,
+    (3,)), `clipped_lo`, `clipped_hi` (fraction of the pixels clipped at the
+    bottom / top, per channel), `pixels` (pixels used), `pixels_per_sample`
+    (integrated autocorrelation, (3,)), `interval` ((2, 3): the range the mean
+    lies in by the noise-floor analysis), `floor` ((3,): the channel is at the
+    camera's noise floor).
     """
 
     rgb: np.ndarray
@@ -369,20 +410,39 @@ class PatchStats:
     clipped_lo: np.ndarray
     clipped_hi: np.ndarray
     pixels: int
+    cov: np.ndarray | None = None
+    pixels_per_sample: np.ndarray | None = None
+    interval: np.ndarray | None = None
+    floor: np.ndarray | None = None
+
+    @property
+    def se(self) -> np.ndarray:
+        """Standard error of `rgb`, per channel."""
+        return np.sqrt(np.diag(self.cov)) if self.cov is not None else np.full(3, np.nan)
 
 
-def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibration, box: Box) -> PatchStats:
-    """Trimmed statistics of the calibrated reflectance inside `box`, away from its edges."""
+def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibration, box: Box,
+                jpeg: JpegSteps | None = None, reference: bool = False,
+                floor_noise: float | None = None) -> PatchStats:  # fmt: skip
+    """Statistics of the calibrated reflectance inside `box`, away from its edges, with the noise of their mean.
+
+    `jpeg`: the file's quantisation steps (`diffwash.fit._noise.jpeg_steps`), if it is a JPEG;
+    `reference`: the box is a reference every patch depends on; `floor_noise`: the camera's noise
+    at black (`diffwash.fit._noise.camera_noise_floor`), if known (see `diffwash.fit._noise.pixel_noise`).
+    """
     ib = inner_box(box)
     ys, xs = np.mgrid[ib.y0 : ib.y1, ib.x0 : ib.x1]
-    ys, xs = ys.ravel(), xs.ravel()
-    values = linear[ys, xs] / cal.light(ys, xs)[:, None] / cal.gain
-    raw = display[ys, xs]
+    light = cal.light(ys.ravel(), xs.ravel()).reshape(ys.shape)
+    values = linear[ib.y0 : ib.y1, ib.x0 : ib.x1] / light[..., None] / cal.gain
+    raw = display[ib.y0 : ib.y1, ib.x0 : ib.x1]
     lo_level, hi_level = _clip_levels(bits)
-    mean = _trimmed_mean(values)
-    mad = np.median(np.abs(values - np.median(values, axis=0)), axis=0) * 1.4826
-    return PatchStats(rgb=mean, spread=mad, clipped_lo=np.mean(raw <= lo_level, axis=0),
-                      clipped_hi=np.mean(raw >= hi_level, axis=0), pixels=len(ys))  # fmt: skip
+    clipped_lo = np.mean(raw <= lo_level, axis=(0, 1))
+    clipped_hi = np.mean(raw >= hi_level, axis=(0, 1))
+    noise = pixel_noise(values, raw, 1 / (float(np.mean(light)) * cal.gain), bits, clipped_lo, clipped_hi, jpeg,
+                        reference, floor_noise)  # fmt: skip
+    return PatchStats(rgb=noise.value, spread=noise.spread, clipped_lo=clipped_lo, clipped_hi=clipped_hi,
+                      pixels=int(ys.size), cov=noise.cov, pixels_per_sample=noise.pixels_per_sample,
+                      interval=noise.interval, floor=noise.floor)  # fmt: skip
 
 
 def linearise(display: np.ndarray) -> np.ndarray:

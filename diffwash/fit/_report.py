@@ -57,6 +57,13 @@ def _pairs(
     ax.set_title(title, fontsize=9, loc="left")
 
 
+def _floor_mark(patch: Any) -> str:
+    """' (b: floor)' for a patch whose blue channel is at the camera's noise floor, etc."""
+    floor = getattr(patch, "floor", None) or []
+    marked = "".join(c for c, f in zip("rgb", floor) if f)
+    return f" ({marked}: floor)" if marked else ""
+
+
 def _save(fig, path: str | os.PathLike) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110, facecolor="white")
@@ -79,8 +86,8 @@ def save_swatch_report(path: str | os.PathLike, fit: Any, photo: np.ndarray | No
         items = [p for p in fit.patches if p.ground == ground]
         if items:
             items.sort(key=lambda p: p.coats)
-            groups.append((f"over {ground}", [(f"{p.coats:g} coat{'s' if p.coats != 1 else ''}", p.observed, p.fitted,
-                                               p.delta_e) for p in items]))  # fmt: skip
+            groups.append((f"over {ground}", [(f"{p.coats:g} coat{'s' if p.coats != 1 else ''}" + _floor_mark(p),
+                                               p.observed, p.fitted, p.delta_e) for p in items]))  # fmt: skip
     coats = np.array([0.25, 0.5, 1, 2, 4, 8])
     more = []
     for ground in ("paper", "black"):
@@ -89,14 +96,22 @@ def save_swatch_report(path: str | os.PathLike, fit: Any, photo: np.ndarray | No
         pred = fit.predict(coats, ground)
         more.append((ground, pred))
     n_cols = max(len(items) for _, items in groups)
-    fig = _figure(figsize=(3.2 + 1.0 * max(n_cols, 6), 6.2 if photo is not None else 4.2))
+    lines = fit.interval_lines() if hasattr(fit, "interval_lines") else []
+    extra = 0.16 * len(lines)
+    fig = _figure(figsize=(3.2 + 1.0 * max(n_cols, 6), (6.2 if photo is not None else 4.2) + extra))
     k = fit.pigment
-    status = f"converged in {fit.iterations} steps" if fit.converged else f"NOT converged ({fit.iterations} steps)"
+    status = (f"converged in {fit.iterations} steps" if fit.converged
+              else f"DID NOT CONVERGE in {fit.iterations} steps: do not use these values")  # fmt: skip
     fig.suptitle(f"{k.name}: K = {np.round(k.K, 3).tolist()}, S = {np.round(k.S, 3).tolist()} per coat\n"
                  f"mean CIEDE2000 {fit.mean_delta_e:.2f} over {len(fit.patches)} patches, {status}",
-                 fontsize=9, x=0.02, ha="left")  # fmt: skip
+                 fontsize=9, x=0.02, ha="left", color="black" if fit.converged else "red")  # fmt: skip
+    for i, line in enumerate(lines):  # intervals, and the bounds where the photo does not determine a value
+        flagged = " < " in line or " > " in line or "not determined" in line
+        fig.text(0.02, 1 - (0.085 + 0.022 * i) * 6.2 / fig.get_figheight(), line, fontsize=6.5, ha="left",
+                 va="top", color="darkorange" if flagged else "0.2")  # fmt: skip
+    top = 1 - extra / fig.get_figheight()  # room for the interval lines
     if photo is not None:
-        ax = fig.add_axes([0.02, 0.5, 0.45, 0.38])
+        ax = fig.add_axes([0.02, 0.5 * top, 0.45, 0.38 * top])
         ax.imshow(np.clip(photo, 0, 1))
         if layout is not None:
             b = layout.paper
@@ -110,12 +125,12 @@ def save_swatch_report(path: str | os.PathLike, fit: Any, photo: np.ndarray | No
                 ax.text(b.x0 + 2, b.y0 + 2, f"{p.coats:g}", color="yellow", fontsize=6, va="top")
         ax.set_title("photo and layout (blue: paper, white: black, yellow: patches)", fontsize=8, loc="left")
         ax.axis("off")
-        ax2 = fig.add_axes([0.52, 0.5, 0.46, 0.38])
+        ax2 = fig.add_axes([0.52, 0.5 * top, 0.46, 0.38 * top])
         _more(ax2, coats, more)
-    ax = fig.add_axes([0.1, 0.03, 0.88, 0.42 if photo is not None else 0.75])
+    ax = fig.add_axes([0.1, 0.03, 0.88, (0.42 if photo is not None else 0.75) * top])
     _pairs(ax, groups, "patches: observed (left half) | fitted (right half)")
     if photo is None:
-        ax2 = fig.add_axes([0.1, 0.8, 0.88, 0.1])
+        ax2 = fig.add_axes([0.1, 0.8 * top, 0.88, 0.1 * top])
         _more(ax2, coats, more)
     _save(fig, path)
 
@@ -201,7 +216,7 @@ def save_image_report(path: str | os.PathLike, fit: Any, targets: Sequence[Any],
             ax.set_xlabel("step", fontsize=8)
             ax.set_ylabel("rms residual", fontsize=8)
             ax.tick_params(labelsize=7)
-            ax.set_title(f"{fit.solver}: {'converged' if fit.converged else 'NOT converged'} in {fit.iterations}",
+            ax.set_title(f"{fit.solver}: {'converged' if fit.converged else 'did not converge'} in {fit.iterations} steps",
                          fontsize=8)  # fmt: skip
         else:
             axes[i, 4].axis("off")

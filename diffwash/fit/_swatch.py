@@ -38,18 +38,23 @@ from ..pigments import Pigment
 from ..pigments import save as save_pigments
 from ._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
 from ._kmfit import starts_for
-from ._photo import Calibration, Layout, PatchStats, calibrate, linearise, parse_layout, patch_stats, read_layout
+from ._noise import camera_noise_floor, jpeg_steps
+from ._noisefit import Observations, Uncertainty, fit_noise, uncertainty
+from ._noisefit import _prediction_and_jacobian
+from ._photo import Calibration, Layout, PatchStats, calibrate, inner_box, linearise, parse_layout, patch_stats
+from ._photo import read_layout
 from ._table import delta_e_displayed
 
 __all__ = ["SWATCH_MODEL", "PatchResult", "SwatchFit", "fit_swatches"]
 
 #: The model for swatch photos: thickness = coats (the renderer's unit), no
-#: surface term (as the renderer), CIE 1994 residuals, a weak prior. CIE94
-#: weights chroma and hue differences by chroma as CIEDE2000 does; on the real
-#: NTU measurements a fit in it predicts within 0.05 CIEDE2000 of a fit in
-#: CIEDE2000 itself, and it compiles in half the time (the command's cold start).
-#: The diagnostics are CIEDE2000 either way; `FitModel(loss="de2000", ...)` fits in it.
-SWATCH_MODEL = FitModel(thickness="linear", surface="none", loss="cie94")
+#: surface term (as the renderer), residuals in standard deviations of each
+#: patch's own noise with the calibration fitted jointly (`loss="noise"`,
+#: `diffwash.fit._noisefit`), and a weak prior (a tenth of a standard deviation
+#: per unit of log) that only settles what the photo leaves free. The
+#: diagnostics are CIEDE2000; `FitModel(thickness="linear", loss="cie94")` is
+#: the unweighted perceptual fit.
+SWATCH_MODEL = FitModel(thickness="linear", surface="none", loss="noise", prior=0.1)
 _CHANNELS = ("red", "green", "blue")
 
 
@@ -59,7 +64,9 @@ class PatchResult:
 
     `observed` and `fitted` are linear reflectance (3,); `delta_e` is CIEDE2000
     between them; `weight` is the patch's weight in the fit (lower when partly
-    clipped); `bound` says per channel whether the observation was only a bound.
+    clipped); `bound` says per channel whether the observation was only a bound;
+    `se` is the standard error of `observed` (3,) (its noise); `floor` says per
+    channel whether it is at the camera's noise floor.
     """
 
     photo: int
@@ -72,12 +79,18 @@ class PatchResult:
     weight: float
     bound: list[bool]
     spread: np.ndarray
+    se: np.ndarray | None = None
+    floor: list[bool] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"photo": self.photo, "box": self.box, "coats": self.coats, "ground": self.ground,
-                "observed": [round(float(v), 6) for v in self.observed],
-                "fitted": [round(float(v), 6) for v in self.fitted], "delta_e_2000": round(float(self.delta_e), 4),
-                "weight": round(float(self.weight), 4), "clipped": self.bound}  # fmt: skip
+        out = {"photo": self.photo, "box": self.box, "coats": self.coats, "ground": self.ground,
+               "observed": [round(float(v), 6) for v in self.observed],
+               "fitted": [round(float(v), 6) for v in self.fitted], "delta_e_2000": round(float(self.delta_e), 4),
+               "weight": round(float(self.weight), 4), "clipped": self.bound}  # fmt: skip
+        if self.se is not None:
+            out["standard_error"] = [float(f"{v:.4g}") for v in self.se]
+            out["noise_floor"] = self.floor
+        return out
 
 
 @dataclass(frozen=True)
@@ -94,6 +107,10 @@ class SwatchFit:
     - `iterations`, `converged`: how Levenberg-Marquardt went.
     - `log_sd`: standard deviations of the fitted `log_K`, `log_S`.
     - `identifiability`: what the card can and cannot tell, in words.
+    - `uncertainty`: the noise-aware fit's `Uncertainty` (covariance of the logs
+      with the calibration's uncertainty, degrees of freedom, parameters the
+      photo does not determine), or None for an unweighted fit. `intervals` and
+      `predict_interval` use it.
     """
 
     pigment: Pigment
@@ -106,6 +123,92 @@ class SwatchFit:
     log_sd: dict[str, np.ndarray]
     identifiability: str
     model: FitModel = SWATCH_MODEL
+    uncertainty: Uncertainty | None = None
+
+    @property
+    def log_value(self) -> np.ndarray:
+        """`(log K_r, log K_g, log K_b, log S_r, log S_g, log S_b)`."""
+        return np.log(np.maximum(np.concatenate([self.pigment.K, self.pigment.S]), 1e-300))
+
+    def _need_uncertainty(self) -> Uncertainty:
+        if self.uncertainty is None:
+            raise DiffwashError(f"an unweighted fit (loss {self.model.loss!r}) has no intervals: fit with the "
+                                f"default model (loss 'noise')")  # fmt: skip
+        return self.uncertainty
+
+    def intervals(self, level: float = 0.9) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Intervals of K and S per channel holding the truth with probability `level` (default 90%).
+
+        **Returns:** `{"K": (lower, upper), "S": (lower, upper)}`, arrays (3,).
+        Where the photo only bounds a parameter (`uncertainty.reason`), the
+        interval is one-sided: a lower end of 0 or an upper end of infinity.
+        """
+        lo, hi = self._need_uncertainty().intervals(self.log_value, level)
+        lo, hi = np.exp(lo), np.exp(hi)
+        return {"K": (lo[:3], hi[:3]), "S": (lo[3:], hi[3:])}
+
+    def interval_lines(self, level: float = 0.9) -> list[str]:
+        """K and S per channel with their intervals, in words (what `diffwash fit-swatch` prints).
+
+        A parameter the photo does not determine is given as the bound the data do
+        give, with the reason, e.g. `S blue < 0.0174 (at the camera's noise floor...)`.
+        """
+        if self.uncertainty is None:
+            return []
+        unc = self.uncertainty
+        iv = self.intervals(level)
+        pct = f"{100 * level:g}%"
+        why = {"noise floor": "at the camera's noise floor: the photo bounds it but does not measure it",
+               "clipped": "clipped by the camera: the photo bounds it but does not measure it",
+               "weak": "poorly determined by this card"}  # fmt: skip
+        lines = []
+        for k, key in enumerate(("K", "S")):
+            parts = []
+            for c, ch in enumerate(_CHANNELS):
+                j = 3 * k + c
+                v, lo, hi = getattr(self.pigment, key)[c], iv[key][0][c], iv[key][1][c]
+                if unc.reason[j] and lo <= 0 and np.isfinite(hi):
+                    parts.append(f"{ch} < {hi:.3g} ({why[unc.reason[j]]})")
+                elif unc.reason[j] and not np.isfinite(hi) and lo > 0:
+                    parts.append(f"{ch} > {lo:.3g} ({why[unc.reason[j]]})")
+                elif unc.reason[j] and not (lo > 0 or np.isfinite(hi)):
+                    parts.append(f"{ch} not determined ({why[unc.reason[j]]})")
+                else:
+                    flag = f" ({why[unc.reason[j]]})" if unc.reason[j] else ""
+                    parts.append(f"{ch} {v:.4g} [{lo:.4g}, {hi:.4g}]{flag}")
+            lines.append(f"{key} per coat ({pct} intervals): " + "; ".join(parts))
+        lines.append(f"chi-square {unc.chi2:.1f} for {unc.dof} degrees of freedom; patch-to-patch dispersion beyond "
+                     f"the pixels' noise {100 * unc.dispersion:.1f}%")  # fmt: skip
+        return lines
+
+    def _ground(self, ground: Any) -> np.ndarray:
+        if isinstance(ground, str):
+            if ground == "black":
+                if self.black is None:
+                    raise DiffwashError("the card had no black band: its reflectance is unknown")
+                return self.black
+            if ground == "paper":
+                return self.paper
+            raise DiffwashError(f"unknown ground {ground!r} (must be 'paper' or 'black')")
+        return np.asarray(ground, np.float64)
+
+    def predict_interval(self, coats: Any, ground: Any = "paper", level: float = 0.9) -> tuple[np.ndarray, np.ndarray]:
+        """Intervals of the linear reflectance at `coats` over `ground` (as `predict`), per channel.
+
+        Propagates the covariance of the logs (calibration included) through
+        Kubelka-Munk (to first order, in log reflectance), with Student's t;
+        a reflectance is at most 1. **Returns:** `(lower, upper)`, each (len(coats), 3).
+        """
+        unc = self._need_uncertainty()
+        coats = np.atleast_1d(np.asarray(coats, np.float64))
+        g = np.broadcast_to(self._ground(ground), coats.shape + (3,))
+        theta = {"log_K": self.log_value[:3], "log_S": self.log_value[3:]}
+        pred, J = _prediction_and_jacobian(self.model, theta, coats, g)
+        cov = np.where(np.isfinite(unc.log_cov), unc.log_cov, 1e6)
+        var = np.einsum("ncj,jk,nck->nc", J, cov, J)
+        sd_log = np.sqrt(np.maximum(var, 0)) / np.maximum(pred, 1e-12)
+        t = unc.quantile(level)
+        return pred * np.exp(-t * sd_log), np.minimum(pred * np.exp(t * sd_log), 1.0)
 
     @property
     def mean_delta_e(self) -> float:
@@ -118,17 +221,7 @@ class SwatchFit:
         **Returns:** (len(coats), 3).
         """
         coats = np.atleast_1d(np.asarray(coats, np.float64))
-        if isinstance(ground, str):
-            if ground == "black":
-                if self.black is None:
-                    raise DiffwashError("the card had no black band: its reflectance is unknown")
-                g = self.black
-            elif ground == "paper":
-                g = self.paper
-            else:
-                raise DiffwashError(f"unknown ground {ground!r} (must be 'paper' or 'black')")
-        else:
-            g = np.asarray(ground, np.float64)
+        g = self._ground(ground)
         theta = {"log_K": np.log(np.maximum(self.pigment.K, 1e-300)),
                  "log_S": np.log(np.maximum(self.pigment.S, 1e-300))}  # fmt: skip
         return np.asarray(predict_jit(self.model, theta, coats, np.broadcast_to(g, coats.shape + (3,))), np.float64)
@@ -146,6 +239,7 @@ class SwatchFit:
             "converged": bool(self.converged),
             "log_sd": {k: [float(x) if np.isfinite(x) else None for x in v] for k, v in self.log_sd.items()},
             "identifiability": self.identifiability,
+            **({"uncertainty": self.uncertainty.to_dict()} if self.uncertainty is not None else {}),
             "calibration": [c.to_dict() for c in self.calibrations],
             "patches": [p.to_dict() for p in self.patches],
         }
@@ -196,6 +290,76 @@ def _load_photo(photo: Any) -> tuple[np.ndarray, int, str | None]:
     return a, 8, None
 
 
+@dataclass
+class _Photo:
+    """One photo measured: its layout, calibration, black band and patches."""
+
+    layout: Layout
+    calibration: Calibration
+    paper: PatchStats
+    black: PatchStats | None
+    patches: list[PatchStats]
+
+
+def _measure(photo: Any, layout: Any) -> _Photo:
+    """Read, validate, calibrate and measure one photo (its patches, paper and black boxes)."""
+    display, bits, photo_path = _load_photo(photo)
+    if not np.all(np.isfinite(display)):
+        raise DiffwashError("the photo has NaN or infinite values", file=photo_path)
+    H, W, _ = display.shape
+    if isinstance(layout, Layout):
+        L = parse_layout(layout.to_dict(), file=layout.path, size=(W, H))
+    elif isinstance(layout, (str, os.PathLike)):
+        L = read_layout(layout, size=(W, H))
+    else:
+        L = parse_layout(layout, size=(W, H))
+    linear = linearise(display)
+    cal = calibrate(linear, display, bits, L, file=L.path or photo_path)
+    steps = jpeg_steps(photo_path)
+    paper = patch_stats(linear, display, bits, cal, L.paper, steps, reference=True)
+    black, floor = None, None
+    if L.black is not None:
+        black = patch_stats(linear, display, bits, cal, L.black, steps, reference=True)
+        if np.any(black.clipped_hi > 0.5):
+            raise DiffwashError("the black box is clipped white in the photo: is it on the black band?",
+                                file=L.path, field="black.box")  # fmt: skip
+        b = inner_box(L.black)
+        floor = camera_noise_floor(linear[b.y0 : b.y1, b.x0 : b.x1], display[b.y0 : b.y1, b.x0 : b.x1], bits)
+    patches = [patch_stats(linear, display, bits, cal, p.box, steps, floor_noise=floor) for p in L.patches]
+    return _Photo(layout=L, calibration=cal, paper=paper, black=black, patches=patches)
+
+
+def _bounds(st: PatchStats) -> tuple[np.ndarray, np.ndarray, float]:
+    """A patch's clipped channels (bounds, not values) and its weight (lower when partly clipped)."""
+    bound_lo, bound_hi = st.clipped_lo > 0.5, st.clipped_hi > 0.5
+    partly = np.where(bound_lo | bound_hi, 0.0, np.maximum(st.clipped_lo, st.clipped_hi))
+    return bound_lo, bound_hi, float(max(1.0 - 2 * partly.max(), 0.1))
+
+
+def _observations(photos: list[_Photo], paper: np.ndarray, black: np.ndarray | None) -> Observations:
+    """Every patch of every photo as rows with their noise, and the calibration's uncertainty."""
+    rows = []
+    for k, ph in enumerate(photos):
+        for p, st in zip(ph.layout.patches, ph.patches):
+            lo, hi, weight = _bounds(st)
+            ground = ph.layout.paper_reflectance if p.ground == "paper" else black
+            rows.append((p.coats, ground, st.rgb, st.cov, lo, hi, weight, k, p.ground == "black",
+                         ph.calibration.uncertainty_at(p.box), st.floor))  # fmt: skip
+    cols = list(zip(*rows))
+    # A photo's gain is its paper box's mean over the paper's reflectance: the box's noise is the gain's.
+    gain_sd = np.array([np.sqrt(np.diag(ph.paper.cov)) / np.maximum(ph.paper.rgb, 1e-12) for ph in photos])
+    black_sd = None
+    if black is not None:
+        sds = [np.sqrt(np.diag(ph.black.cov)) / np.maximum(ph.black.rgb, 1e-12) for ph in photos if ph.black]
+        black_sd = np.sqrt(np.sum(np.square(sds), axis=0)) / len(sds)
+    return Observations(amount=np.array(cols[0], np.float64), ground=np.array(cols[1], np.float64),
+                        rgb=np.array(cols[2]), cov=np.array(cols[3]), lo=np.array(cols[4]), hi=np.array(cols[5]),
+                        weight=np.array(cols[6]), photo=np.array(cols[7]), on_black=np.array(cols[8]),
+                        relative=np.array(cols[9], np.float64), floor=np.array(cols[10]),
+                        gain_sd=np.maximum(gain_sd, 1e-5),
+                        black_sd=None if black_sd is None else np.maximum(black_sd, 1e-5))  # fmt: skip
+
+
 def fit_swatches(
     photo: Any,
     layout: Any,
@@ -215,92 +379,87 @@ def fit_swatches(
       `diffwash.fit._photo`), or a list matching `photo`.
     - `name`: the pigment's name (default: the layout's `name`, else the photo's
       file name).
-    - `model`: the `FitModel` (default `SWATCH_MODEL`).
-    - `max_steps`: Levenberg-Marquardt steps at most.
+    - `model`: the `FitModel` (default `SWATCH_MODEL`: residuals weighted by
+      each patch's noise, the calibration fitted jointly; a perceptual loss,
+      e.g. `FitModel(thickness="linear", loss="cie94")`, fits unweighted and
+      reports no intervals).
+    - `max_steps`: Levenberg-Marquardt steps at most (per run).
 
     **Returns:**
 
     A `SwatchFit`: the pigment and its diagnostics (per-patch CIEDE2000,
-    iterations, convergence, identifiability). Bad input (boxes outside the
-    photo or empty, an unknown ground, a saturated or missing paper box, NaN)
-    raises `DiffwashError` naming the file and the field.
+    iterations, convergence, identifiability, intervals, channels at the
+    noise floor). Bad input (boxes outside the photo or empty, an unknown
+    ground, a saturated or missing paper box, NaN) raises `DiffwashError`
+    naming the file and the field.
     """
     photos = list(photo) if isinstance(photo, (list, tuple)) else [photo]
     layouts = list(layout) if isinstance(layout, (list, tuple)) else [layout]
     if len(photos) != len(layouts):
         raise DiffwashError(f"got {len(photos)} photos but {len(layouts)} layouts")
-    rows, info, cals, papers, blacks = [], [], [], [], []
-    for k, (ph, lay) in enumerate(zip(photos, layouts)):
-        display, bits, photo_path = _load_photo(ph)
-        if not np.all(np.isfinite(display)):
-            raise DiffwashError("the photo has NaN or infinite values", file=photo_path)
-        H, W, _ = display.shape
-        if isinstance(lay, Layout):
-            L = parse_layout(lay.to_dict(), file=lay.path, size=(W, H))
-        elif isinstance(lay, (str, os.PathLike)):
-            L = read_layout(lay, size=(W, H))
-        else:
-            L = parse_layout(lay, size=(W, H))
-        if name is None and L.name:
-            name = L.name
-        linear = linearise(display)
-        cal = calibrate(linear, display, bits, L, file=L.path or photo_path)
-        cals.append(cal)
-        papers.append(L.paper_reflectance)
-        black = None
-        if L.black is not None:
-            bs = patch_stats(linear, display, bits, cal, L.black)
-            black = bs.rgb
-            if np.any(bs.clipped_hi > 0.5):
-                raise DiffwashError("the black box is clipped white in the photo: is it on the black band?",
-                                    file=L.path, field="black.box")  # fmt: skip
-            blacks.append(black)
-        for j, p in enumerate(L.patches):
-            st: PatchStats = patch_stats(linear, display, bits, cal, p.box)
-            bound_lo, bound_hi = st.clipped_lo > 0.5, st.clipped_hi > 0.5
-            partly = np.where(bound_lo | bound_hi, 0.0, np.maximum(st.clipped_lo, st.clipped_hi))
-            weight = float(max(1.0 - 2 * partly.max(), 0.1))
-            ground = L.paper_reflectance if p.ground == "paper" else black
-            rows.append((p.coats, ground, st.rgb, bound_lo, bound_hi, weight))
-            info.append((k, p, st))
+    measured = [_measure(ph, lay) for ph, lay in zip(photos, layouts)]
+    if name is None:
+        name = next((m.layout.name for m in measured if m.layout.name), None)
     if name is None:
         name = Path(photos[0]).stem if isinstance(photos[0], (str, os.PathLike)) else "pigment"
-    paper = np.mean(papers, axis=0)
+    paper = np.mean([m.layout.paper_reflectance for m in measured], axis=0)
+    blacks = [m.black.rgb for m in measured if m.black is not None]
     black = np.mean(blacks, axis=0) if blacks else None
-    amount = np.array([r[0] for r in rows])
-    grounds = np.array([r[1] for r in rows])
-    rgb = np.array([r[2] for r in rows])
-    lo = np.array([r[3] for r in rows])
-    hi = np.array([r[4] for r in rows])
-    weight = np.array([r[5] for r in rows])
-    if not np.all(np.isfinite(rgb)):
+    obs = _observations(measured, paper, black)
+    if not np.all(np.isfinite(obs.rgb)):
         raise DiffwashError("a patch's colour is not finite", file=layouts[0] if isinstance(layouts[0], str) else None)
+    gnames = np.where(obs.on_black, "black", "paper")
+    start = paired_start(obs.amount, gnames, obs.rgb, paper, black)
+    K0, S0 = start if start is not None else single_ground_start(obs.amount, obs.ground, obs.rgb)
+    starts = starts_for(model, K0, S0)
+    info = [(k, p, st) for k, m in enumerate(measured) for p, st in zip(m.layout.patches, m.patches)]
+    if model.loss != "noise":
+        return _fit_unweighted(model, obs, starts, max_steps, name, paper, black, measured, info)
+    res = fit_noise(model, obs, [{k: v[i] for k, v in starts.items()} for i in range(len(starts["log_K"]))],
+                    max_steps=max_steps)  # fmt: skip
+    theta = res.theta
+    if black is not None:
+        black = black * np.exp(theta["log_black"])
+    shown = res.fitted * np.exp(theta["log_gain"][obs.photo])  # what the photo shows of the fit
+    sd = np.sqrt(np.diag(res.cov))
+    log_sd_ = {"log_K": sd[:3], "log_S": sd[3:]}
+    pigment = Pigment(K=np.exp(theta["log_K"]), S=np.exp(theta["log_S"]), name=name)
+    patches = _patch_results(info, obs, shown)
+    text = _identifiability([(p.coats, p.ground) for _, p, _ in info], log_sd_)
+    unc = uncertainty(res, obs)
+    return SwatchFit(pigment=pigment, patches=patches, paper=paper, black=black,
+                     calibrations=[m.calibration for m in measured], iterations=res.steps, converged=res.converged,
+                     log_sd=log_sd_, identifiability=text, model=model, uncertainty=unc)  # fmt: skip
 
-    # Start: Curtis's inversion from each coat count seen over both grounds, else a rough guess.
-    gnames = np.array([p.ground for _, p, _ in info])
-    start = paired_start(amount, gnames, rgb, paper, black)
-    K0, S0 = start if start is not None else single_ground_start(amount, grounds, rgb)
-    starts = {k: v[None] for k, v in starts_for(model, K0, S0).items()}
-    n, M = len(amount), pad_rows(len(amount))
+
+def _patch_results(info: list, obs: Observations, fitted: np.ndarray) -> list[PatchResult]:
+    rgb, lo, hi = obs.rgb, obs.lo, obs.hi
+    # As the camera would have recorded the fit: a clipped channel shows its bound when the fit lies beyond it.
+    des = delta_e_displayed(np.where(lo, np.maximum(fitted, rgb), np.where(hi, np.minimum(fitted, rgb), fitted)), rgb)
+    return [
+        PatchResult(photo=k, box=p.box.tolist(), coats=p.coats, ground=p.ground, observed=rgb[i], fitted=fitted[i],
+                    delta_e=float(des[i]), weight=float(obs.weight[i]),
+                    bound=[bool(a or b) for a, b in zip(lo[i], hi[i])], spread=st.spread,
+                    se=np.sqrt(np.diag(obs.cov[i])), floor=[bool(f) for f in obs.floor[i]])  # fmt: skip
+        for i, (k, p, st) in enumerate(info)
+    ]
+
+
+def _fit_unweighted(model: FitModel, obs: Observations, starts: dict, max_steps: int, name: str, paper: np.ndarray,
+                    black: np.ndarray | None, measured: list[_Photo], info: list) -> SwatchFit:  # fmt: skip
+    """The perceptual fit (CIE94, CIEDE2000, CIELAB or sRGB residuals), every patch alike: no intervals."""
+    starts = {k: v[None] for k, v in starts.items()}
+    n, M = len(obs.amount), pad_rows(len(obs.amount))
     pad = lambda a, fill: np.concatenate([a, np.full((M - n,) + a.shape[1:], fill, a.dtype)])[None]  # noqa: E731
-    batch = Rows(amount=pad(amount, 0.0), ground=pad(grounds, 0.5), rgb=pad(rgb, 0.5), lo=pad(lo, False),
-                 hi=pad(hi, False), weight=pad(weight, 0.0))  # fmt: skip
+    batch = Rows(amount=pad(obs.amount, 0.0), ground=pad(obs.ground, 0.5), rgb=pad(obs.rgb, 0.5),
+                 lo=pad(obs.lo, False), hi=pad(obs.hi, False), weight=pad(obs.weight, 0.0))  # fmt: skip
     res = fit_rows(model, batch, starts, max_steps=max_steps)
     theta = {k: np.asarray(v[0], np.float64) for k, v in res.theta.items()}
     sizes = {k: int(np.prod(theta[k].shape)) for k in res.param_names}
     sd = log_sd(np.asarray(res.jacobian[0], np.float64), sizes, float(res.loss[0]))
     pigment = Pigment(K=np.exp(theta["log_K"]), S=np.exp(theta["log_S"]), name=name)
-    fitted = np.asarray(res.fitted[0], np.float64)[:n]
-    # As the camera would have recorded the fit: a clipped channel shows its bound when the fit lies beyond it.
-    des = delta_e_displayed(np.where(lo, np.maximum(fitted, rgb), np.where(hi, np.minimum(fitted, rgb), fitted)), rgb)
-    patches = [
-        PatchResult(photo=k, box=p.box.tolist(), coats=p.coats, ground=p.ground, observed=rgb[i], fitted=fitted[i],
-                    delta_e=float(des[i]), weight=float(weight[i]), bound=[bool(a or b) for a, b in zip(lo[i], hi[i])],
-                    spread=st.spread)  # fmt: skip
-        for i, (k, p, st) in enumerate(info)
-    ]
+    patches = _patch_results(info, obs, np.asarray(res.fitted[0], np.float64)[:n])
     text = _identifiability([(p.coats, p.ground) for _, p, _ in info], sd)
-    return SwatchFit(pigment=pigment, patches=patches, paper=paper, black=black, calibrations=cals,
-                     iterations=int(res.steps[0]), converged=bool(res.converged[0]), log_sd=sd,
-                     identifiability=text, model=model)  # fmt: skip
-
+    return SwatchFit(pigment=pigment, patches=patches, paper=paper, black=black,
+                     calibrations=[m.calibration for m in measured], iterations=int(res.steps[0]),
+                     converged=bool(res.converged[0]), log_sd=sd, identifiability=text, model=model)  # fmt: skip

@@ -44,6 +44,7 @@ import numpy as np
 
 from .. import colorimetry
 from .._errors import DiffwashError
+from .._io import check_float32
 from ..pigments import Pigment
 from ..pigments import save as save_pigments
 from ._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
@@ -166,6 +167,7 @@ def read_table(path: str | os.PathLike, *, linear: bool = False) -> MeasurementT
                 raise _fail(f"not a number: {text!r}", path, f"line {line}: {c}") from None
             if not math.isfinite(v):
                 raise _fail(f"must be a finite number, got {text!r}", path, f"line {line}: {c}")
+            check_float32(v, file=path, field=f"line {line}: {c}")
             if v < 0:
                 raise _fail(f"must be >= 0, got {text}", path, f"line {line}: {c}")
             numbers.append(v)

@@ -1,0 +1,71 @@
+"""Small caches keyed by array identity or content, without a device-to-host copy.
+
+JAX arrays are immutable, so one that is the same object has the same values:
+it is keyed by identity (the cache holds a reference, so the identity is not
+reused while the entry lives). NumPy arrays and Python numbers are mutable or
+host values: they are keyed by their bytes (no device transfer is involved).
+"""
+
+from __future__ import annotations
+
+import collections
+import zlib
+from collections.abc import Callable, Hashable
+from typing import Any
+
+import jax
+import numpy as np
+
+__all__ = ["leaf_key", "tree_key", "LRU"]
+
+
+def leaf_key(x: Any) -> Hashable:
+    """A hashable key for one array leaf: its identity if a JAX array, else its shape, dtype and bytes."""
+    if isinstance(x, jax.Array):
+        return ("jax", id(x))
+    a = np.ascontiguousarray(np.asarray(x))
+    return ("np", a.shape, a.dtype.str, zlib.crc32(a.view(np.uint8).reshape(-1)))
+
+
+def tree_key(*trees: Any) -> tuple[tuple[Hashable, ...], list[Any]]:
+    """`(key, leaves)` of pytrees: the key of every leaf, and the leaves themselves (to hold them alive)."""
+    leaves = jax.tree_util.tree_leaves(trees)
+    return tuple(leaf_key(x) for x in leaves), leaves
+
+
+class LRU:
+    """A small least-recently-used cache of values computed from pytrees of arrays."""
+
+    def __init__(self, size: int):
+        self.size = size
+        self._items: collections.OrderedDict[Hashable, tuple[Any, list[Any]]] = collections.OrderedDict()
+
+    def get(self, key_trees: tuple, compute: Callable[[], Any], *, extra: Hashable = ()) -> Any:
+        """The value for `key_trees` (and the hashable `extra`), computed by `compute()` if absent."""
+        key, leaves = tree_key(*key_trees)
+        key = (key, extra)
+        hit = self._items.get(key)
+        if hit is None:
+            hit = (compute(), leaves)
+        self._items[key] = hit
+        self._items.move_to_end(key)
+        while len(self._items) > self.size:
+            self._items.popitem(last=False)
+        return hit[0]
+
+    def put(self, key_trees: tuple, value: Any, *, extra: Hashable = ()) -> None:
+        key, leaves = tree_key(*key_trees)
+        self._items[(key, extra)] = (value, leaves)
+        self._items.move_to_end((key, extra))
+        while len(self._items) > self.size:
+            self._items.popitem(last=False)
+
+    def clear(self) -> None:
+        self._items.clear()
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def values(self) -> list[Any]:
+        """The cached values, least recently used first."""
+        return [v for v, _ in self._items.values()]

@@ -1,0 +1,130 @@
+"""The package's shape: a one-way import graph, a command line over the public API, one model.
+
+These hold the structure issue 14 asks for: no import cycles inside `diffwash/`, imports inside
+functions only for optional dependencies, the CLI importing nothing private, and the exported
+shaders generated from the model's own functions and constants.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+from conftest import ROOT
+
+PACKAGE = ROOT / "diffwash"
+#: Optional dependencies, imported where they are used (extras, or only some platforms have them).
+OPTIONAL = {"glfw", "mitsuba", "drjit", "nvdiffrast", "torch", "playwright", "mixbox", "pymixbox"}
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
+    if node.level == 0:
+        return node.module or ""
+    base = module.split(".")
+    if not is_package:
+        base = base[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _imports() -> dict[str, list[tuple[str, bool, int]]]:
+    """Per module: (imported module, inside a function?, line) for every import."""
+    out = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        module = _module_name(path)
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        found = []
+        functions = [n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))]
+        inside = {id(n) for f in functions for n in ast.walk(f) if n is not f}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for alias in node.names:
+                    found.append((alias.name, id(node) in inside, node.lineno))
+            elif isinstance(node, ast.ImportFrom):
+                target = _resolve(module, path.name == "__init__.py", node)
+                found.append((target, id(node) in inside, node.lineno))
+                if node.level or target.startswith("diffwash"):
+                    for alias in node.names:  # `from . import km` imports the module diffwash.km
+                        found.append((f"{target}.{alias.name}", id(node) in inside, node.lineno))
+        out[module] = found
+    return out
+
+
+def _internal_graph() -> dict[str, set[str]]:
+    modules = set(_imports())
+    graph = {m: set() for m in modules}
+    for m, found in _imports().items():
+        for target, _, _ in found:
+            if target in modules and target != m and not m.startswith(target + "."):
+                graph[m].add(target)
+    return graph
+
+
+def test_no_import_cycles_inside_the_package():
+    graph = _internal_graph()
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        stack.append(m)
+        for t in sorted(graph[m]):
+            if state.get(t) == 1:
+                cycle = stack[stack.index(t):] + [t]
+                pytest.fail("import cycle: " + " -> ".join(cycle))
+            if t not in state:
+                visit(t)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)
+
+
+def test_imports_inside_functions_are_only_for_optional_dependencies():
+    offenders = []
+    for module, found in _imports().items():
+        for target, inside, line in found:
+            if inside and target.split(".")[0] not in OPTIONAL:
+                offenders.append(f"{module}:{line} imports {target}")
+    assert not offenders, "\n".join(sorted(set(offenders)))
+
+
+def test_the_command_line_uses_only_the_public_api():
+    offenders = []
+    for module, found in _imports().items():
+        if not module.startswith("diffwash.cli"):
+            continue
+        for target, _, line in found:
+            if not target.startswith("diffwash") or target.startswith("diffwash.cli"):
+                continue
+            if any(part.startswith("_") for part in target.split(".")):
+                offenders.append(f"{module}:{line} imports {target}")
+    assert not offenders, "\n".join(sorted(set(offenders)))
+
+
+def test_shaders_are_generated_from_the_model():
+    """The KM series, the clamps' epsilon and the sRGB breakpoints in the GLSL are the Python ones."""
+    from diffwash import colorimetry, km, shading
+    from diffwash._glsl import shader_sources
+    from diffwash._xp import float_literal
+
+    _, frag = shader_sources("glsl330", "per-pixel", colour="km")
+    for c in (*km._CH_COEFFS, *km._SH_COEFFS):
+        assert float_literal(c) in frag
+    assert frag.count("* t4 +") >= 2 * (km.SERIES_TERMS - 1)  # both series, Horner, every term
+    assert float_literal(shading.GAIN_BIAS_EPS) in frag
+    assert float_literal(colorimetry.SRGB_LINEAR_BREAK) in frag
+    assert float_literal(colorimetry.SRGB_ENCODED_BREAK) in frag
+    for name in ("km_layer", "km_composite", "km_over", "schlick_bias", "perlin_gain", "watercolour_thicknesses"):
+        assert f"Generated from diffwash." in frag and f" {name}(" in frag

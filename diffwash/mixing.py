@@ -160,7 +160,7 @@ def reflectance(
     ground: Float[ArrayLike, "*#n b"],
     law: AmountLaw,
     weights: Float[ArrayLike, "*#n p"] | None = None,
-    k2: float = 0.0,
+    k2: float | Array = 0.0,
 ) -> Float[Array, "*n b"]:
     r"""Reflectance of a mixed layer over an opaque ground, per band.
 
@@ -171,12 +171,9 @@ def reflectance(
     **Returns:** the measured reflectance, shape `(..., B)`.
     """
     Kx, Sx = optical_depths(K, S, amounts, law, weights)
-    g = _float(ground)
-    if k2:
-        g = saunderson_in(g, k2)
+    g = saunderson_in(_float(ground), k2)  # k2 = 0: the identity (k2 may be traced)
     R, T = km.layer(Kx, Sx, 1.0)
-    out = km.over(R, T, g)
-    return saunderson_out(out, k2) if k2 else out
+    return saunderson_out(km.over(R, T, g), k2)
 
 
 class Palette(eqx.Module):

@@ -58,6 +58,7 @@ from typing import Any
 
 import equinox as eqx
 import jax.numpy as jnp
+import colour
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
@@ -196,8 +197,6 @@ def _astm_applies(wl: tuple[float, ...]) -> bool:
 
 def _spectral_data(illuminant: str, observer: str) -> tuple[Any, Any]:
     """colour-science's CMFs and illuminant by name (a one-line error for an unknown name)."""
-    import colour  # noqa: PLC0415  (heavy: only where a spectral observation is built)
-
     if observer not in colour.MSDS_CMFS:
         known = ", ".join(k for k in colour.MSDS_CMFS if "Standard Observer" in k)
         raise DiffwashError(f"unknown observer {observer!r} (colour-science knows e.g. {known})", field="observer")
@@ -208,8 +207,6 @@ def _spectral_data(illuminant: str, observer: str) -> tuple[Any, Any]:
 
 
 def _xyz_matrix_astm(wl: tuple[float, ...], cmfs: Any, illuminant: Any) -> np.ndarray:
-    import colour  # noqa: PLC0415
-
     basis = colour.MultiSpectralDistributions(np.eye(len(wl)), np.asarray(wl))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # colour-science's notes on aligning shapes
@@ -232,8 +229,6 @@ def _xyz_matrix_integration(wl: tuple[float, ...], cmfs: Any, illuminant: Any) -
 
 @functools.lru_cache(maxsize=32)
 def _spectral_matrices(wl: tuple[float, ...], illuminant: str, observer: str, method: str) -> tuple[np.ndarray, ...]:
-    import colour  # noqa: PLC0415
-
     cmfs, sd_illuminant = _spectral_data(illuminant, observer)
     if method == "ASTM E308":
         to_xyz = _xyz_matrix_astm(wl, cmfs, sd_illuminant)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import add_image_limit
+from . import _library_fit, add_image_limit
 
 NAME = "fit-swatch"
 HELP = "fit pigment K and S to a swatch-card photo or a table of measured colours"
@@ -33,6 +33,9 @@ def add_arguments(p) -> None:
     p.add_argument("--loss", choices=("noise", "de2000", "cie94", "lab", "srgb"),
                    help="residuals (default: noise for photos -- weighted by each patch's noise, with intervals -- "
                         "de2000 for tables)")
+    p.add_argument("--mixing", choices=("duncan", "weights"), default="duncan",
+                   help="spectral or mixture table: Duncan's concentration-weighted sums (default), or with a fitted "
+                        "mixing weight per pigment (docs/mixing.md says what each gives on pairs never seen mixed)")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"),
@@ -148,6 +151,9 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
 
 
 def _run_table(args, out: Path, report: Path | None) -> int:
+    mixtures = _library_fit.wants_library(args.table, args.linear)
+    if mixtures is not None:  # spectral bands, mixtures or other grounds: one joint fit, one library
+        return _library_fit.run_library(args, mixtures, out, report)
     import time
 
     import numpy as np

@@ -28,8 +28,7 @@ Other columns (neither a number nor `r`, `g`, `b`) are ignored. A *query* table
 (`read_queries`) has just the first three columns (any others are ignored).
 
 The single-pigment RGB tables of `diffwash.fit.read_table` are the special case
-`r,g,b` with grounds `paper` and `black`: `Measurements.to_table()` gives the
-`MeasurementTable` that `read_table` returns.
+`r,g,b` with grounds `paper` and `black` (that reader fits them pigment by pigment).
 
 Every error names the file, the line and the column in one line.
 """
@@ -45,9 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import colorimetry, spectral
-from .._errors import DiffwashError
-from ._table import MeasurementTable
+from . import colorimetry, spectral
+from ._errors import DiffwashError
 
 __all__ = ["Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture"]
 
@@ -120,26 +118,6 @@ class Measurements:
         return replace(self, pigments=tuple(self.pigments[i] for i in ix), amounts=tuple(self.amounts[i] for i in ix),
                        ground=self.ground[m], values=self.values[m], lo=self.lo[m], hi=self.hi[m],
                        lines=None if self.lines is None else self.lines[m])  # fmt: skip
-
-    def to_table(self):
-        """The single-pigment RGB `diffwash.fit.MeasurementTable` (as `read_table` reads it).
-
-        Needs an RGB table of single pigments on `paper` (and `black`).
-        """
-        if self.spectral:
-            raise _fail("is a spectral table; a MeasurementTable holds r, g, b", self.path)
-        if np.any(self.is_mixture):
-            i = int(np.argmax(self.is_mixture))
-            raise _fail("a MeasurementTable holds single pigments only", self.path, self._line(i), "pigment")
-        extra = set(self.grounds) - {"paper", "black"}
-        if extra or "paper" not in self.grounds:
-            raise _fail("a MeasurementTable needs a paper ground and allows black only", self.path)
-        return MeasurementTable(
-            pigment=np.array([p[0] for p in self.pigments]), amount=np.array([sum(a) for a in self.amounts]),
-            ground=self.ground.copy(), rgb=self.values.copy(), lo=self.lo.copy(), hi=self.hi.copy(),
-            paper=self.grounds["paper"], black=self.grounds.get("black"),
-            path=self.path, lines=None if self.lines is None else self.lines.copy(),
-        )  # fmt: skip
 
     def _line(self, i: int) -> int:
         return int(self.lines[i]) if self.lines is not None else i + 2

@@ -280,9 +280,24 @@ def observation(
     if method == "ASTM E308" and not _astm_applies(wl):
         raise DiffwashError("ASTM E308 needs a regular grid of 1, 5, 10 or 20 nm (10 and 20 nm ones starting and "
                             "ending on a multiple of 10); use method='Integration'", field="method")  # fmt: skip
+    _check_visible(wl, str(observer))
     to_xyz, to_rgb, white = _spectral_matrices(wl, str(illuminant), str(observer), method)
     return Observation(to_xyz=to_xyz, to_rgb=to_rgb, white=white, wavelengths=wl, illuminant=str(illuminant),
                        observer=str(observer), method=method)  # fmt: skip
+
+
+#: A grid must span this much of the visible range (nm): nearly all of what an observer sees under daylight.
+VISIBLE = (420.0, 680.0)
+
+
+def _check_visible(wl: tuple[float, ...], observer: str) -> None:
+    """Refuse a grid the observer cannot see: bands outside its colour-matching functions, or not spanning VISIBLE."""
+    cmfs, _ = _spectral_data(DEFAULT_ILLUMINANT, observer)
+    lo, hi = float(cmfs.wavelengths[0]), float(cmfs.wavelengths[-1])
+    if wl[0] < lo or wl[-1] > hi or wl[0] > VISIBLE[0] or wl[-1] < VISIBLE[1]:
+        raise DiffwashError(f"a band grid of {wl[0]:g}-{wl[-1]:g} nm cannot be seen as colour: it must lie within the "
+                            f"observer's {lo:g}-{hi:g} nm and span {VISIBLE[0]:g}-{VISIBLE[1]:g} nm",
+                            field="wavelengths")  # fmt: skip
 
 
 @functools.lru_cache(maxsize=1)

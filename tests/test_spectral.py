@@ -86,7 +86,8 @@ def test_gradients_match_finite_differences():
 @pytest.mark.parametrize(
     "grid, what",
     [([500.0], "at least two"), ([500.0, 500.0], "increase strictly"), ([400.0, float("nan")], "finite"),
-     ([-5.0, 400.0], "> 0")],
+     ([-5.0, 400.0], "> 0"), ([100.0, 150.0, 200.0], "cannot be seen"), ([450.0, 500.0, 550.0], "cannot be seen"),
+     ([380.0, 700.0, 1000.0], "cannot be seen")],
 )  # fmt: skip
 def test_bad_grids_are_refused(grid, what):
     with pytest.raises(DiffwashError, match=what):

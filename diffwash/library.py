@@ -204,16 +204,24 @@ def _vector(d: dict, key: str, n: int | None, path: Any, where: str) -> np.ndarr
     return a
 
 
+def _observation(o: Any, path: Any) -> spectral.Observation:
+    if not isinstance(o, dict):
+        raise DiffwashError("needs an observation (wavelengths, or \"bands\": \"sRGB\")", file=path,
+                            field="observation")  # fmt: skip
+    if o.get("bands") == "sRGB":
+        return spectral.observation()
+    try:
+        return spectral.observation(o.get("wavelengths") or [], illuminant=o.get("illuminant", "D65"),
+                                    observer=o.get("observer", spectral.DEFAULT_OBSERVER), method=o.get("method"))
+    except DiffwashError as e:  # the same problem, located in this file
+        raise DiffwashError(e.problem, file=path, field=f"observation.{e.field or 'wavelengths'}") from None
+
+
 def library_from_dict(d: Any, path: Any = None) -> Library:
     """A `Library` from its JSON object (checked: one-line errors name the file and the field)."""
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise DiffwashError(f"is not a {FORMAT} file (no \"format\": \"{FORMAT}\")", file=path)
-    o = d.get("observation") or {}
-    if o.get("bands") == "sRGB":
-        obs = spectral.observation()
-    else:
-        obs = spectral.observation(o.get("wavelengths") or [], illuminant=o.get("illuminant", "D65"),
-                                   observer=o.get("observer", spectral.DEFAULT_OBSERVER), method=o.get("method"))
+    obs = _observation(d.get("observation"), path)
     nb = len(obs.bands)
     pigs = d.get("pigments")
     if not isinstance(pigs, list) or not pigs:

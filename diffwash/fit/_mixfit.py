@@ -53,6 +53,11 @@ RGB_GRID = tuple(float(w) for w in range(380, 781, 10))
 K2_MAX = 0.9
 #: Spectral residuals are log(R + LOG_FLOOR): relative errors, as the eye sees dark colours.
 LOG_FLOOR = 0.01
+#: Ridge on an RGB fit's spectral coefficients, towards their start (CIEDE2000 units per unit log K or S).
+RGB_RIDGE = 0.1
+#: An RGB fit stops when a step changes the parameters and the loss by less than this (relative): its flat
+#: directions (spectra three channels cannot tell apart) otherwise creep on for hundreds of steps in float32.
+RGB_RTOL = 1e-2
 
 
 @dataclass(frozen=True)
@@ -210,7 +215,7 @@ def _rgb_init(m: Measurements, A: np.ndarray, phi: np.ndarray, obs: spectral.Obs
     return coef
 
 
-def _rgb_problem(A, G, Y, lo, hi, phi, P: int, model: MixModel, white):
+def _rgb_problem(A, G, Y, lo, hi, phi, coef0, P: int, model: MixModel, white):
     D = np.diff(np.eye(phi.shape[1] - 1), n=2, axis=0)
     smooth = 0.3 * model.prior
 
@@ -227,7 +232,8 @@ def _rgb_problem(A, G, Y, lo, hi, phi, P: int, model: MixModel, white):
         lab_m = colorimetry.xyz_to_lab(colorimetry.linear_srgb_to_xyz(target), white)
         r = colorimetry.delta_e_2000_residuals(lab_m, lab_p).ravel()
         # One "band" holding every coefficient: BandLevenbergMarquardt is then a dense LM by normal equations.
-        per_band = jnp.concatenate([r, smooth * (coef[:, 1:] @ D.T).ravel()])[None]
+        ridge = RGB_RIDGE * model.prior * (coef - coef0).ravel()  # pins the directions three channels leave free
+        per_band = jnp.concatenate([r, smooth * (coef[:, 1:] @ D.T).ravel(), ridge])[None]
         return per_band, _shared_prior(shared, P, model)
 
     return fn
@@ -245,17 +251,39 @@ def _fit_rgb(m: Measurements, names, model: MixModel, max_steps: int, rtol: floa
     coef0 = jnp.asarray(_rgb_init(m, A, phi, obs), dtype)
     shared0 = jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0)
     cast = lambda x: jnp.asarray(x, dtype)  # noqa: E731
-    fn = _rgb_problem(cast(A), cast(G), cast(m.values), jnp.asarray(m.lo), jnp.asarray(m.hi), cast(phi), P, model,
+    fn = _rgb_problem(cast(A), cast(G), cast(m.values), jnp.asarray(m.lo), jnp.asarray(m.hi), cast(phi), coef0, P, model,
                       cast(colorimetry.WHITE_D65))  # fmt: skip
-    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
-    y0 = (coef0.reshape(1, -1), shared0)
-    sol = optx.least_squares(fn, solver, y0, args=cast(obs.to_rgb), max_steps=max_steps, throw=False)
-    coef, shared = sol.value[0].reshape(coef0.shape), sol.value[1]
+    (flat, shared), ok, steps = _solve_in_chunks(fn, (coef0.reshape(1, -1), shared0), cast(obs.to_rgb), max_steps,
+                                                 rtol)  # fmt: skip
+    coef = flat.reshape(coef0.shape)
     gam, w, k2 = _shared(shared, P, model)
     logks = np.asarray(coef, np.float64) @ phi.T
-    ok = bool(sol.result == optx.RESULTS.successful)
     out = (np.exp(logks[:P]), np.exp(logks[P:]), np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2))
-    return (*out, ok, int(sol.stats["num_steps"])), grounds, obs
+    return (*out, ok, steps), grounds, obs
+
+
+#: Steps per call of the solver in `_solve_in_chunks`.
+CHUNK = 40
+
+
+def _solve_in_chunks(fn, y, args, max_steps: int, rtol: float):
+    """Levenberg-Marquardt in chunks of CHUNK steps, ended by the solver's own test or a plateau of the loss.
+
+    In float32 an RGB fit reaches a point where no step lowers the loss by a representable amount: the
+    trust region then rejects every step and optimistix's Cauchy test (which needs an accepted step) never
+    fires. A chunk that lowers the loss by less than `rtol` relative is that plateau: converged.
+    """
+    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
+    loss = jax.jit(lambda y: sum(jnp.sum(r * r) for r in jax.tree_util.tree_leaves(fn(y, args))))
+    prev, steps = float(loss(y)), 0
+    while steps < max_steps:
+        sol = optx.least_squares(fn, solver, y, args=args, max_steps=min(CHUNK, max_steps - steps), throw=False)
+        y, steps = sol.value, steps + int(sol.stats["num_steps"])
+        now = float(loss(y))
+        if sol.result == optx.RESULTS.successful or prev - now <= rtol * prev:
+            return y, True, steps
+        prev = now
+    return y, False, steps
 
 
 def _flat_ground(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.ndarray:
@@ -284,8 +312,8 @@ def fit_mixtures(
     """
     t0 = time.perf_counter()
     names = m.names
-    if rtol is None:  # an RGB fit's CIEDE2000 residuals need no more than 1e-3 (1e-4 stalls in float32)
-        rtol = 1e-7 if jnp.zeros(()).dtype == jnp.float64 else (1e-4 if m.spectral else 1e-3)
+    if rtol is None:  # RGB: see RGB_RTOL
+        rtol = 1e-7 if jnp.zeros(()).dtype == jnp.float64 else (1e-4 if m.spectral else RGB_RTOL)
     if m.spectral:
         obs = m.observation(**observe)
         K, S, gam, w, k2, ok, steps = _fit_spectral(m, names, model, max_steps, rtol)

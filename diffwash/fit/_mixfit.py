@@ -76,6 +76,7 @@ class MixModel:
     weights: bool = False
     surface: bool = False
     prior: float = 1.0
+    own: bool = False
 
     def describe(self) -> dict[str, Any]:
         return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior}
@@ -122,10 +123,14 @@ def _dense(m: Measurements, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
     return A, G
 
 
-def _layer(K, S, A, G, gamma, w, k2):
+def _layer(K, S, A, G, gamma, w, k2, own: bool = False):
     """Reflectance of rows `A` (N, P) over grounds `G` (N, B); k2 may be 0 (traced)."""
     law = mixing.AmountLaw(gamma=gamma)
-    Kx, Sx = mixing.optical_depths(K, S, A, law, w)
+    if own:  # experiment: each pigment's law at its own amount, t_i(a_i)
+        u = law(A) * w
+        Kx, Sx = u @ K, u @ S
+    else:
+        Kx, Sx = mixing.optical_depths(K, S, A, law, w)
     g = mixing.saunderson_in(G, k2)
     R, T = km.layer(Kx, Sx, 1.0)
     return mixing.saunderson_out(km.over(R, T, g), k2)
@@ -166,7 +171,7 @@ def _spectral_problem(A, G, Y, band0, P: int, model: MixModel):
         band, shared = y
         gam, w, k2 = _shared(shared, P, model)
         K, S = jnp.exp(band[:, :P]).T, jnp.exp(band[:, P:]).T
-        R = _layer(K, S, A, G, gam, w, k2)
+        R = _layer(K, S, A, G, gam, w, k2, model.own)
         per_band = jnp.concatenate([(jnp.log(R + LOG_FLOOR) - jnp.log(Y + LOG_FLOOR)).T, eps * (band - band0)], axis=1)
         return per_band, _shared_prior(shared, P, model)
 

@@ -107,7 +107,11 @@ def test_outputs_naming_inputs_are_refused(cli, tmp_path):
     assert (tmp_path / "t.csv").read_text() == GOOD
 
 
-def test_the_shipped_single_pigment_rgb_table_keeps_its_own_fit():
+def test_tables_with_mixtures_or_bands_take_the_joint_fit_and_single_rgb_tables_keep_theirs(tmp_path):
     from diffwash.cli import _library_fit
 
     assert _library_fit.wants_library(str(ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv"), False) is not None
+    (tmp_path / "t.csv").write_text(GOOD)
+    assert _library_fit.wants_library(str(tmp_path / "t.csv"), False).spectral
+    (tmp_path / "s.csv").write_text("pigment,amount,ground,r,g,b\npaper,0,paper,240,240,235\nP1,0.02,paper,200,40,40\n")
+    assert _library_fit.wants_library(str(tmp_path / "s.csv"), False) is None

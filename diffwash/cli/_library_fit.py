@@ -6,6 +6,7 @@ every other table goes through `diffwash.fit.fit_mixtures`.
 
 from __future__ import annotations
 
+import csv
 import time
 from pathlib import Path
 
@@ -16,12 +17,26 @@ from .. import io as dio
 from ..fit import MixModel, fit_mixtures
 
 
+def _needs_library(table: str) -> bool:
+    """Band columns named by wavelength, or a `+` in the pigment column (a glance: the readers validate)."""
+    try:
+        with open(table, newline="", encoding="utf-8-sig") as f:
+            rows = csv.reader(f)
+            header = [h.strip().lower() for h in next(rows, [])]
+            if any(h.replace(".", "", 1).isdigit() for h in header):
+                return True
+            col = header.index("pigment") if "pigment" in header else 0
+            return any(len(r) > col and "+" in r[col] for r in rows)
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return False  # the table's own reader says what is wrong with it
+
+
 def wants_library(table: str, linear: bool) -> measurements.Measurements | None:
-    """The table's measurements if it needs the joint mixture fit, else None (the single-pigment RGB path)."""
-    m = measurements.read_measurements(table, linear=linear)
-    if m.spectral or np.any(m.is_mixture) or not set(m.grounds) <= {"paper", "black"}:
-        return m
-    return None
+    """The table's measurements if it needs the joint mixture fit (spectral, or with mixtures), else None
+    (single-pigment RGB tables keep `diffwash.fit.fit_table` and its reader's errors)."""
+    if not _needs_library(table):
+        return None
+    return measurements.read_measurements(table, linear=linear)
 
 
 def run_library(args, m: measurements.Measurements, out: Path, report: Path | None) -> int:

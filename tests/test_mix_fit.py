@@ -124,3 +124,32 @@ def test_pair_folds_hold_out_whole_pairs():
         assert held and not held & trained and not held & seen
         assert not np.any(test & ~m.is_mixture)  # single paints always train
         seen |= held
+
+
+def test_an_rgb_mixture_table_fits_smooth_spectra_through_srgb(tmp_path, capsys):
+    """8-bit sRGB of mixtures made by smooth spectral pigments: the RGB route fits them as smooth spectra."""
+    wl = np.arange(380.0, 781.0, 10.0)
+    bump = lambda c, w: np.exp(-0.5 * ((wl - c) / w) ** 2)  # noqa: E731
+    K = np.stack([0.3 + 5 * bump(500, 60), 0.3 + 5 * bump(430, 40), 0.3 + 4 * bump(620, 50)])
+    S = np.full((3, len(wl)), 0.8)
+    pal = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray([0.8, 0.8, 0.8])),
+                         weights=jnp.ones(3), names=NAMES, wavelengths=tuple(float(x) for x in wl))  # fmt: skip
+    paper = np.full(len(wl), 0.85)
+    obs = spectral.observation(wl)
+    rows = _rows()
+    A = np.zeros((len(rows), 3))
+    for r, (ns, amts) in enumerate(rows):
+        for n, a in zip(ns, amts):
+            A[r, NAMES.index(n)] += a
+    rgb = np.asarray(obs.srgb(pal.reflectance(jnp.asarray(A), jnp.asarray(paper))))
+    with open(tmp_path / "t.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["pigment", "amount", "ground", "r", "g", "b"])
+        w.writerow(["paper", "0", "paper", *np.round(255 * np.asarray(obs.srgb(paper))).astype(int)])
+        for (ns, amts), c in zip(rows, rgb):
+            w.writerow(["+".join(ns), "+".join(f"{a:g}" for a in amts), "paper", *np.round(255 * np.clip(c, 0, 1)).astype(int)])
+    assert main(["fit-swatch", "--table", str(tmp_path / "t.csv"), "-o", str(tmp_path / "lib.json")]) == 0
+    lib = library.load_library(tmp_path / "lib.json")
+    assert lib.spectral and len(lib.observation.wavelengths) == 41
+    assert lib.fit["summary"]["mean_de2000"] < 1.0
+    assert np.all(np.isfinite(np.asarray(lib.palette.K))) and np.all(np.asarray(lib.palette.S) > 0)

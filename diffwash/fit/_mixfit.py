@@ -70,6 +70,8 @@ class MixModel:
     - `weights`: each pigment's mixing weight fitted (else all 1: Duncan).
     - `surface`: Saunderson's $k_2$ fitted (one for the table), else none.
     - `prior`: strength of the weak priors (ridge on the shared terms; smoothness for RGB tables).
+    - `own`: each pigment's amount law applied to its own amount, `Kx = sum_i K_i t_i(a_i)`, instead of
+      Duncan's concentrations at the layer's total amount (measured worse: docs/mixing.md; kept to reproduce it).
     """
 
     gamma: bool = True
@@ -79,7 +81,8 @@ class MixModel:
     own: bool = False
 
     def describe(self) -> dict[str, Any]:
-        return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior}
+        return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
+                "own": self.own}
 
 
 @dataclass(frozen=True)

@@ -233,7 +233,7 @@ def _rgb_problem(A, G, Y, lo, hi, phi, coef0, P: int, model: MixModel, white):
         gam, w, k2 = _shared(shared, P, model)
         logks = coef @ phi.T  # (2P, B)
         K, S = jnp.exp(logks[:P]), jnp.exp(logks[P:])
-        rgb = _layer(K, S, A, G, gam, w, k2) @ args
+        rgb = _layer(K, S, A, G, gam, w, k2, model.own) @ args
         clamp = jax.lax.stop_gradient(rgb)
         target = jnp.where(hi, jnp.maximum(Y, clamp), jnp.where(lo, jnp.minimum(Y, clamp), Y))
         lab_p = colorimetry.xyz_to_lab(colorimetry.linear_srgb_to_xyz(rgb), white)

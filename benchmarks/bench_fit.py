@@ -48,7 +48,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 import diffwash  # noqa: E402
-from diffwash import pigments  # noqa: E402
+from diffwash import colorimetry, pigments  # noqa: E402
 from diffwash.fit import PLAIN, FitModel, fit_image, fit_swatches, fit_table, read_ntu_wpsm  # noqa: E402
 from diffwash.swatchcard import make_swatch_card, save_swatch_card  # noqa: E402
 
@@ -176,15 +176,13 @@ def bench_cli(folder: Path) -> list[tuple]:
     save_swatch_card(card, folder / "cli.jpg")
     train, _ = ntu_split(read_ntu_wpsm(NTU), 0)
     lines = ["pigment,amount,ground,r,g,b", "paper,0,paper,240,240,235"]
-    enc = lambda v: np.round(255 * np.where(v > 0.0031308, 1.055 * np.abs(v) ** (1 / 2.4) - 0.055, 12.92 * v))  # noqa: E731
     for n, a, g, c in zip(train.pigment, train.amount, train.ground, train.rgb):
-        lines.append(f"{n},{a:g},{g}," + ",".join(str(int(x)) for x in enc(c)))
+        lines.append(f"{n},{a:g},{g}," + ",".join(str(int(x)) for x in np.round(255 * colorimetry.to_display(c))))
     (folder / "ntu.csv").write_text("\n".join(lines) + "\n")
     scene = json.loads((ROOT / "data" / "scenes" / "sphere.json").read_text())
     scene["mesh"] = str(ROOT / "data" / "meshes" / "sphere.ply")
     scene["image"] = {"width": 128, "height": 128}
     (folder / "truth.json").write_text(json.dumps(scene))
-    from diffwash import colorimetry
     from diffwash._io import write_png
 
     img = np.asarray(diffwash.render(diffwash.load_scene(folder / "truth.json")))

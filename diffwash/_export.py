@@ -22,7 +22,6 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import trimesh
@@ -31,8 +30,9 @@ from . import lut as _lut
 from ._errors import DiffwashError
 from ._io import atomic_folder
 from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
-from ._scene import Scene, load_scene, scene_to_dict
+from ._scene import Mesh, Scene, load_scene, scene_to_dict
 from ._viewer import viewer_html
+from .shading import Params
 
 __all__ = ["export", "mesh_glb", "EXPORT_FILES"]
 
@@ -52,7 +52,7 @@ EXPORT_FILES = (
 )
 
 
-def mesh_glb(mesh: Any) -> bytes:
+def mesh_glb(mesh: Mesh) -> bytes:
     """The mesh (vertices, faces, vertex normals) as binary glTF 2.0."""
     m = trimesh.Trimesh(
         vertices=np.asarray(mesh.vertices, np.float64),
@@ -63,7 +63,7 @@ def mesh_glb(mesh: Any) -> bytes:
     return m.export(file_type="glb")
 
 
-def _scene_of(scene_or_path: Any) -> Any:
+def _scene_of(scene_or_path: Scene | str | os.PathLike) -> Scene:
     if isinstance(scene_or_path, Scene):
         return scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
@@ -76,10 +76,10 @@ def _is_export(folder: Path) -> bool:
 
 
 def export(
-    scene: Any,
+    scene: Scene | str | os.PathLike,
     folder: str | os.PathLike,
     *,
-    params: Any = None,
+    params: Params | None = None,
     target: str = "webgl2",
     size: int | tuple[int, int] = 256,
     fmt: str = "png16",

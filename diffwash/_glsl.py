@@ -33,7 +33,7 @@ evaluation on the GPU.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -44,6 +44,10 @@ from ._version import __version__
 from ._xp import Expr, glsl_session
 from .pigments import Pigment
 from .shading import CONSTANTS, Params
+
+if TYPE_CHECKING:  # annotations only: the LUT module sits beside this one, not below it
+    from ._scene import Scene
+    from .lut import Lut
 
 __all__ = [
     "TARGETS",
@@ -410,7 +414,9 @@ def _v3(x: Any) -> list[float]:
     return [float(v) for v in np.asarray(x, np.float64).reshape(3)]
 
 
-def uniform_values(scene: Any, params: Any = None, *, lut: Any = None, aspect: float | None = None) -> dict[str, Any]:
+def uniform_values(
+    scene: Scene, params: Params | None = None, *, lut: Lut | None = None, aspect: float | None = None
+) -> dict[str, Any]:
     """The uniforms' values for a scene: what a host program sets before drawing.
 
     **Arguments:**

@@ -20,14 +20,16 @@ import numpy as np
 from ._errors import DiffwashError, FailureError
 from ._glsl import shader_sources, uniform_values
 from .colorimetry import to_display
+from ._scene import Scene
 from .lut import Lut, bake, load_encoded
+from .shading import Params
 
 __all__ = ["Preview", "create_context", "render", "has_display", "can_show", "renderer_name"]
 
 _RENDERER = {"name": "not started"}
 
 
-def create_context(*, standalone: bool = True) -> Any:
+def create_context(*, standalone: bool = True) -> moderngl.Context:
     """A moderngl context: headless EGL (works with or without a display).
 
     Failure to create one is a one-line `FailureError` saying what to install.
@@ -67,9 +69,9 @@ class Preview:
 
     def __init__(
         self,
-        ctx: Any,
-        scene: Any,
-        params: Any = None,
+        ctx: moderngl.Context,
+        scene: Scene,
+        params: Params | None = None,
         *,
         lut: Lut | None = None,
         shading: str | None = None,
@@ -133,7 +135,7 @@ class Preview:
         paper = np.asarray(self.params.paper, np.float64)
         return tuple(float(c) for c in (paper if self.linear else to_display(paper)))
 
-    def draw(self, fbo: Any) -> None:
+    def draw(self, fbo: moderngl.Framebuffer) -> None:
         """Draw the scene into `fbo` (cleared to the paper)."""
 
         fbo.use()
@@ -151,7 +153,7 @@ class Preview:
             self.program[name].value = unit
         self.vao.render(moderngl.TRIANGLES)
 
-    def framebuffer(self, width: int, height: int) -> Any:
+    def framebuffer(self, width: int, height: int) -> moderngl.Framebuffer:
         """An offscreen framebuffer of this size (8-bit, or float32 when `linear`), kept for reuse."""
         if self._fbo is None or self._fbo.size != (width, height):
             if self._fbo is not None:
@@ -189,14 +191,14 @@ class Preview:
 
 
 def render(
-    scene: Any,
-    params: Any = None,
+    scene: Scene,
+    params: Params | None = None,
     *,
     lut: Lut | None = None,
     shading: str | None = None,
     colour: str | None = None,
     linear: bool = False,
-    ctx: Any = None,
+    ctx: moderngl.Context | None = None,
 ) -> np.ndarray:
     """Render `scene` headless through the exported shaders and a LUT.
 

@@ -38,6 +38,7 @@ import contextlib
 import dataclasses
 import functools
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax
@@ -52,6 +53,9 @@ from ._cache import LRU
 from ._camera import Camera
 from ._interpolate import barycentrics, interpolate
 from ._rasterize import clip_positions, covered, is_concrete, rasterize as rasterize_op
+
+if TYPE_CHECKING:  # annotations only: scenes are built above this module (diffwash._scene imports it)
+    from ._scene import Scene
 
 __all__ = [
     "Visibility",
@@ -185,7 +189,7 @@ def _concrete_visibility(scene, *, antialias: bool) -> Visibility:
     return vis
 
 
-def rasterize(scene, *, antialias: bool = False) -> Visibility:
+def rasterize(scene: Scene, *, antialias: bool = False) -> Visibility:
     """Which triangle each pixel of `scene`'s image sees, on the device.
 
     **Arguments:**
@@ -340,7 +344,7 @@ def _render(scene, params, visibility, antialias, alpha):
 
 
 def render(
-    scene,
+    scene: Scene,
     params: shading.Params | None = None,
     *,
     visibility: Visibility | None = None,
@@ -377,7 +381,7 @@ def render(
 
 
 def render_rgba(
-    scene,
+    scene: Scene,
     params: shading.Params | None = None,
     *,
     visibility: Visibility | None = None,
@@ -402,7 +406,7 @@ def _thickness_kernel(vertices, faces, normals, camera, params, vis, both, *, wi
 
 
 def render_thicknesses(
-    scene,
+    scene: Scene,
     params: shading.Params | None = None,
     *,
     visibility: Visibility | None = None,
@@ -445,7 +449,7 @@ def _stack_visibilities(vis: list[Visibility]) -> Visibility:
 
 
 def render_views(
-    scene,
+    scene: Scene,
     cameras: Camera | list[Camera],
     params: shading.Params | None = None,
     *,
@@ -514,7 +518,7 @@ def _window(scene, start: int, rows: int):
 
 
 def render_strips(
-    scene,
+    scene: Scene,
     params: shading.Params | None = None,
     *,
     antialias: bool = False,

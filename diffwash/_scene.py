@@ -29,6 +29,7 @@ from typing import Any
 import equinox as eqx
 import numpy as np
 import trimesh
+from jaxtyping import Float, Int
 
 from . import pigments as _pigments
 from ._camera import Camera
@@ -56,9 +57,9 @@ class Mesh(eqx.Module):
     `closed` is True for a watertight mesh (its back faces are never seen).
     """
 
-    vertices: Any
-    faces: Any
-    normals: Any
+    vertices: Float[np.ndarray, "V 3"]
+    faces: Int[np.ndarray, "F 3"]
+    normals: Float[np.ndarray, "V 3"]
     closed: bool = eqx.field(static=True, default=False)
 
 
@@ -232,24 +233,8 @@ def _pigment(spec: Any, key: str, file: Any, base: Path) -> _pigments.Pigment:
     raise _fail('needs "pigment" (a name or file) or "K" and "S"', file, key)
 
 
-def parse_scene(
-    data: Any,
-    *,
-    file: str | os.PathLike | None = None,
-    base: str | os.PathLike | None = None,
-    shading: str | None = None,
-    size: tuple[int, int] | None = None,
-) -> Scene:
-    """Make a `Scene` from parsed scene JSON. `base` resolves relative paths.
-
-    `shading` and `size` (width, height) override the file's.
-    """
-    if not isinstance(data, dict):
-        raise _fail(f"a scene must be a JSON object, got {type(data).__name__}", file)
-    base = Path(base) if base is not None else (Path(file).parent if file is not None else Path("."))
-    _check_keys(data, _TOP_KEYS, file)
-
-    # Image.
+def _parse_size(data: dict, file: str | os.PathLike | None, size: tuple[int, int] | None) -> tuple[int, int]:
+    """The image's (width, height): `size` (from --size) over the file's `image` object, checked."""
     image = _object(data, "image", file, required=False)
     _check_keys(image, {"width", "height"}, file, "image.")
     if size is not None:
@@ -263,16 +248,11 @@ def parse_scene(
             raise _fail(f"must be a whole number of pixels, got {v!r}", file, f)
         if not 1 <= v <= MAX_IMAGE_SIDE:
             raise _fail(f"must be between 1 and {MAX_IMAGE_SIDE} pixels, got {v}", file, f)
+    return int(width), int(height)
 
-    # Mesh.
-    if "mesh" not in data:
-        raise _fail("missing key", file, "mesh")
-    if not isinstance(data["mesh"], str) or not data["mesh"]:
-        raise _fail("must be the path of a mesh file", file, "mesh")
-    mesh = load_mesh(base / data["mesh"], field="mesh", file=file)
 
-    # Camera.
-    cam = _object(data, "camera", file)
+def _parse_camera(cam: dict, mesh: Mesh, file: str | os.PathLike | None) -> Camera:
+    """The `camera` object, checked; near and far default to the mesh's bounding sphere."""
     _check_keys(cam, _CAMERA_KEYS, file, "camera.")
     eye = _vec3(cam, "eye", file, "camera.eye")
     target = _vec3(cam, "target", file, "camera.target")
@@ -297,32 +277,11 @@ def parse_scene(
     far = _number(cam, "far", file, "camera.far", default=max(default_far, near * 1.01))
     if far <= near:
         raise _fail(f"must be greater than camera.near ({near}), got {far}", file, "camera.far")
-    camera = Camera(eye=eye, target=target, up=up, fov_y=np.float64(fov_y), near=np.float64(near), far=np.float64(far))
+    return Camera(eye=eye, target=target, up=up, fov_y=np.float64(fov_y), near=np.float64(near), far=np.float64(far))
 
-    # Light.
-    light = _object(data, "light", file)
-    _check_keys(light, {"direction"}, file, "light.")
-    direction = _vec3(light, "direction", file, "light.direction")
-    if np.linalg.norm(direction) == 0:
-        raise _fail("must not be the zero vector", file, "light.direction")
 
-    # Shading mode.
-    mode = shading if shading is not None else data.get("shading", "per-pixel")
-    if mode not in SHADING_MODES:
-        raise _fail(f"must be one of {', '.join(SHADING_MODES)}, got {mode!r}", file, "shading")
-    backfaces = data.get("backfaces", "auto")
-    if backfaces not in BACKFACE_MODES:
-        raise _fail(f"must be one of {', '.join(BACKFACE_MODES)}, got {backfaces!r}", file, "backfaces")
-
-    # Pigments, paper, constants.
-    for key in ("wash", "unlit"):
-        if key not in data:
-            raise _fail("missing key", file, key)
-    wash = _pigment(data["wash"], "wash", file, base)
-    unlit = _pigment(data["unlit"], "unlit", file, base)
-    paper = _vec3(data, "paper", file, "paper", default=DEFAULT_PAPER, nonneg=True)
-    if np.any(paper > 1):
-        raise _fail(f"is a reflectance and must be within [0, 1], got {paper.tolist()}", file, "paper")
+def _parse_constants(data: dict, file: str | os.PathLike | None) -> dict[str, np.float64]:
+    """The shading constants (gain, bias, thickness constants, shininess), checked against their ranges."""
     ranges = {"gain": (0, 1), "bias": (0, 1), "wash_reduction": (0, 1)}
     consts = {}
     for key, default in DEFAULT_CONSTANTS.items():
@@ -334,6 +293,53 @@ def parse_scene(
     wash_max = float(consts["k_specular"] * consts["k_wash"])
     if not wash_max <= FLOAT32_MAX:  # the thickest wash, the LUT's wash_max: each factor fits float32, the product not
         raise _fail(f"k_specular x k_wash = {wash_max:g} (the thickest wash) is out of float32 range", file, "k_wash")
+    return consts
+
+
+def parse_scene(
+    data: Any,
+    *,
+    file: str | os.PathLike | None = None,
+    base: str | os.PathLike | None = None,
+    shading: str | None = None,
+    size: tuple[int, int] | None = None,
+) -> Scene:
+    """Make a `Scene` from parsed scene JSON. `base` resolves relative paths.
+
+    `shading` and `size` (width, height) override the file's.
+    """
+    if not isinstance(data, dict):
+        raise _fail(f"a scene must be a JSON object, got {type(data).__name__}", file)
+    base = Path(base) if base is not None else (Path(file).parent if file is not None else Path("."))
+    _check_keys(data, _TOP_KEYS, file)
+
+    width, height = _parse_size(data, file, size)
+    if "mesh" not in data:
+        raise _fail("missing key", file, "mesh")
+    if not isinstance(data["mesh"], str) or not data["mesh"]:
+        raise _fail("must be the path of a mesh file", file, "mesh")
+    mesh = load_mesh(base / data["mesh"], field="mesh", file=file)
+    camera = _parse_camera(_object(data, "camera", file), mesh, file)
+    light = _object(data, "light", file)
+    _check_keys(light, {"direction"}, file, "light.")
+    direction = _vec3(light, "direction", file, "light.direction")
+    if np.linalg.norm(direction) == 0:
+        raise _fail("must not be the zero vector", file, "light.direction")
+    mode = shading if shading is not None else data.get("shading", "per-pixel")
+    if mode not in SHADING_MODES:
+        raise _fail(f"must be one of {', '.join(SHADING_MODES)}, got {mode!r}", file, "shading")
+    backfaces = data.get("backfaces", "auto")
+    if backfaces not in BACKFACE_MODES:
+        raise _fail(f"must be one of {', '.join(BACKFACE_MODES)}, got {backfaces!r}", file, "backfaces")
+    for key in ("wash", "unlit"):
+        if key not in data:
+            raise _fail("missing key", file, key)
+    wash = _pigment(data["wash"], "wash", file, base)
+    unlit = _pigment(data["unlit"], "unlit", file, base)
+    paper = _vec3(data, "paper", file, "paper", default=DEFAULT_PAPER, nonneg=True)
+    if np.any(paper > 1):
+        raise _fail(f"is a reflectance and must be within [0, 1], got {paper.tolist()}", file, "paper")
+    consts = _parse_constants(data, file)
 
     params = Params(wash=wash, unlit=unlit, paper=paper, light=direction, **consts)
     return Scene(

@@ -31,7 +31,6 @@ import functools
 import inspect
 import itertools
 import math
-import re
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any

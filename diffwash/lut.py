@@ -59,7 +59,7 @@ import jax.numpy as jnp
 import numpy as np
 import OpenEXR
 import png
-from jaxtyping import Array
+from jaxtyping import Array, ArrayLike, Float
 
 from . import shading
 from ._errors import DiffwashError
@@ -123,7 +123,7 @@ class Lut(eqx.Module):
       written in the sidecar.
     """
 
-    values: Any
+    values: Float[Array, "n_unlit n_wash c"]
     wash_max: float = eqx.field(static=True)
     unlit_max: float = eqx.field(static=True)
     kind: str = eqx.field(static=True, default="colour")
@@ -155,7 +155,7 @@ class Lut(eqx.Module):
         R, T = np.asarray(self.values[..., :3], np.float64), np.asarray(self.values[..., 3:], np.float64)
         return (R + T * T * paper / (1 - R * paper)).astype(np.float32)
 
-    def lookup(self, wash: Any, unlit: Any) -> np.ndarray:
+    def lookup(self, wash: Float[ArrayLike, "*b"], unlit: Float[ArrayLike, "*b"]) -> Float[np.ndarray, "*b 3"]:
         """Bilinear lookup, as a GPU sampler does it with linear filtering.
 
         Thicknesses outside the range clamp to its edges (0 where a range is 0).
@@ -198,7 +198,7 @@ def check_size(size: Any, field: str = "size") -> tuple[int, int]:
     return out[0], out[1]
 
 
-def _params_of(scene_or_params: Any) -> tuple[Params, str | None]:
+def _params_of(scene_or_params: Scene | Params | str | os.PathLike) -> tuple[Params, str | None]:
     if isinstance(scene_or_params, Params):
         return scene_or_params, None
     if isinstance(scene_or_params, Scene):
@@ -240,7 +240,7 @@ def _bake_rt(params: Params, wash: Array, unlit: Array) -> Array:
 
 
 def bake(
-    scene_or_params: Any,
+    scene_or_params: Scene | Params | str | os.PathLike,
     size: int | tuple[int, int] = 256,
     *,
     kind: str = "colour",

@@ -40,6 +40,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from PIL import Image
+from scipy.ndimage import gaussian_filter
 
 from . import colorimetry, km
 from ._io import atomic_paths, image_format_for, refuse_overwriting_inputs, write_png
@@ -111,8 +113,6 @@ class SwatchCard:
 
 def _smooth_noise(rng: np.random.Generator, shape: tuple[int, int], sigma: float) -> np.ndarray:
     """Zero-mean, unit-variance noise smoothed over about `sigma` pixels."""
-    from scipy.ndimage import gaussian_filter
-
     n = gaussian_filter(rng.standard_normal(shape), sigma, mode="wrap")
     return n / max(float(n.std()), 1e-12)
 
@@ -145,8 +145,6 @@ def make_swatch_card(
 
     A `SwatchCard`.
     """
-    from scipy.ndimage import gaussian_filter
-
     rng = np.random.default_rng(seed)
     paper = np.asarray(paper, np.float64)
     ink_rgb = np.asarray(ink, np.float64)
@@ -237,8 +235,6 @@ def save_swatch_card(
       turned so that a viewer that honours the tag shows the card upright (the
       layout's boxes are in displayed coordinates).
     """
-    from PIL import Image
-
     photo_path = Path(photo_path)
     if orientation not in _STORE:
         raise ValueError(f"orientation must be one of {sorted(_STORE)}, got {orientation}")

@@ -8,8 +8,14 @@ status 1, unless --allow-unconverged.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
+import numpy as np
+
+from .. import DiffwashError, FailureError, load_scene, referenced_files
+from .. import io as dio
+from ..fit import FITTABLE, IMAGE_LOSSES, SOLVERS, fit_image, load_cameras, parse_fit_list, save_image_report
 from . import add_image_limit
 
 NAME = "fit-image"
@@ -18,8 +24,6 @@ USES_JAX = True
 
 
 def add_arguments(p) -> None:
-    from ..fit._image import FITTABLE, LOSSES, SOLVERS
-
     p.add_argument("targets", nargs="+", metavar="TARGET", help="target image(s), sRGB PNG (8/16 bit) or JPEG")
     p.add_argument("--scene", action="append", required=True, metavar="SCENE.json",
                    help="the scene (one for all targets, or one per target)")  # fmt: skip
@@ -27,7 +31,7 @@ def add_arguments(p) -> None:
     p.add_argument("--fit", required=True, metavar="LIST",
                    help=f"comma-separated parameters to fit: {', '.join(FITTABLE)}")  # fmt: skip
     p.add_argument("-o", "--output", required=True, metavar="JSON", help="the fitted scene file to write")
-    p.add_argument("--loss", choices=LOSSES, default="linear",
+    p.add_argument("--loss", choices=IMAGE_LOSSES, default="linear",
                    help="compare in linear RGB or CIELAB (default: %(default)s)")
     p.add_argument("--solver", choices=SOLVERS, default="lm",
                    help="optimistix solver (default: %(default)s, Levenberg-Marquardt)")
@@ -41,16 +45,6 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    import time
-
-    import numpy as np
-
-    from .._errors import DiffwashError, FailureError
-    from .._io import atomic_paths, refuse_overwriting_inputs
-    from .._scene import load_scene, referenced_files
-    from ..fit import save_image_report
-    from ..fit._image import fit_image, load_cameras, parse_fit_list
-
     t0 = time.perf_counter()
     out = Path(args.output)
     if out.suffix.lower() != ".json":
@@ -63,7 +57,7 @@ def run(args) -> int:
     if args.max_steps < 1:
         raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
     scene_files = [f for s in args.scene for f in (s, *referenced_files(s))]
-    refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.targets, *scene_files, args.cameras])
+    dio.refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.targets, *scene_files, args.cameras])
     names = parse_fit_list(args.fit)
     scenes = [load_scene(s) for s in args.scene]
     if args.cameras:
@@ -92,7 +86,7 @@ def run(args) -> int:
     if not fit.converged and not args.allow_unconverged:
         raise FailureError(f"the fit did not converge ({fit.message}); nothing was written (use --allow-unconverged "
                            f"to write it anyway, or raise --max-steps)")  # fmt: skip
-    with atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+    with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         fit.save(out_tmp)
         if report is not None:
             save_image_report(report_tmp, fit, args.targets, scenes)

@@ -7,8 +7,24 @@ nothing and exits with status 1, unless --allow-unconverged.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
+import numpy as np
+
+from .. import DiffwashError, FailureError, colorimetry
+from .. import io as dio
+from ..fit import (
+    PLAIN,
+    SWATCH_MODEL,
+    FitModel,
+    fit_swatches,
+    fit_table,
+    read_layout,
+    read_table,
+    save_swatch_report,
+    save_table_report,
+)
 from . import _library_fit, add_image_limit
 
 NAME = "fit-swatch"
@@ -48,16 +64,11 @@ def add_arguments(p) -> None:
 
 
 def _srgb8(linear) -> str:
-    import numpy as np
-
-    v = np.clip(np.asarray(linear, np.float64), 0, 1)
-    d = np.where(v > 0.0031308, 1.055 * v ** (1 / 2.4) - 0.055, 12.92 * v)
+    d = colorimetry.to_display(linear)
     return "(" + ", ".join(f"{int(round(255 * c)):3d}" for c in d) + ")"
 
 
 def _check_output(path: str, suffix: str, flag: str) -> Path:
-    from .._errors import DiffwashError
-
     out = Path(path)
     if out.suffix.lower() != suffix:
         raise DiffwashError(f"must be a {suffix} file, got {out.name!r}", field=flag)
@@ -67,14 +78,11 @@ def _check_output(path: str, suffix: str, flag: str) -> Path:
 
 
 def run(args) -> int:
-    from .._errors import DiffwashError
-    from .._io import refuse_overwriting_inputs
-
     out = _check_output(args.output, ".json", "--output")
     report = _check_output(args.report, ".png", "--report") if args.report else None
     if args.max_steps < 1:
         raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
-    refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.photos, *(args.layout or []), args.table])
+    dio.refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.photos, *(args.layout or []), args.table])
     if args.table is not None:
         if args.photos or args.layout:
             raise DiffwashError("give either --table or photos with --layout, not both", field="--table")
@@ -93,8 +101,6 @@ def run(args) -> int:
 
 
 def _finish(converged: bool, allow: bool, what: str) -> None:
-    from .._errors import FailureError
-
     if not converged and not allow:
         raise FailureError(f"{what} did not converge; nothing was written (use --allow-unconverged to write it anyway, "
                            f"or raise --max-steps)")  # fmt: skip
@@ -107,16 +113,6 @@ def _wrote(*paths: Path | None) -> None:
 
 
 def _run_photos(args, out: Path, report: Path | None) -> int:
-    import time
-
-    import numpy as np
-
-    from .._io import atomic_paths, read_image
-    from ..fit import fit_swatches
-    from ..fit._photo import read_layout
-    from ..fit import save_swatch_report
-    from ..fit._swatch import SWATCH_MODEL, FitModel
-
     t0 = time.perf_counter()
     model = SWATCH_MODEL
     if args.loss is not None and args.loss != SWATCH_MODEL.loss:
@@ -140,10 +136,10 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
             print(f"  note: {note}")
     print(f"  {fit.identifiability}")
     _finish(fit.converged, args.allow_unconverged, "the fit")
-    with atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+    with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         fit.save(out_tmp)
         if report is not None:
-            photo, _ = read_image(args.photos[0])
+            photo, _ = dio.read_image(args.photos[0])
             save_swatch_report(report_tmp, fit, photo, read_layout(args.layout[0]))
     _wrote(out, report)
     print(f"done in {time.perf_counter() - t0:.2f} s")
@@ -152,21 +148,10 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
 
 def _run_table(args, out: Path, report: Path | None) -> int:
     mixtures = _library_fit.wants_library(args.table, args.linear)
-    if mixtures is not None:  # spectral bands, mixtures or other grounds: one joint fit, one library
+    if mixtures is not None:  # spectral bands or mixtures: one joint fit, one library
         return _library_fit.run_library(args, mixtures, out, report)
-    import time
-
-    import numpy as np
-
-    from .._io import atomic_paths
-    from ..fit import FitModel, fit_table, read_table
-    from ..fit._kmfit import PLAIN
-    from ..fit import save_table_report
-
     t0 = time.perf_counter()
     if args.loss == "noise":
-        from .._errors import DiffwashError
-
         raise DiffwashError("a table has no pixels to estimate noise from: choose de2000, cie94, lab or srgb",
                             field="--loss")  # fmt: skip
     base = PLAIN if args.plain else FitModel()
@@ -190,7 +175,7 @@ def _run_table(args, out: Path, report: Path | None) -> int:
     print(f"  mean CIEDE2000 over all rows: {allde.mean():.2f}")
     bad = [fit.names[i] for i in range(len(fit.pigments)) if not fit.converged[i]]
     _finish(not bad, args.allow_unconverged, f"the fit of {', '.join(bad)}")
-    with atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+    with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         fit.save(out_tmp)
         if report is not None:
             save_table_report(report_tmp, fit, table)

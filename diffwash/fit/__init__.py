@@ -19,6 +19,7 @@ Formats, models, gauges and what each fit can identify: docs/fitting.md.
 """
 
 from ._image import FITTABLE as FITTABLE
+from ._image import LOSSES as IMAGE_LOSSES
 from ._image import SOLVERS as SOLVERS
 from ._image import ImageFit as ImageFit
 from ._image import fit_image as fit_image

@@ -253,7 +253,7 @@ def _read_target(target: Any, scene: Scene, index: int) -> np.ndarray:
     if isinstance(target, (str, os.PathLike)):
         display, _ = read_image(target)
         where = os.fspath(target)
-        linear = np.where(display > 0.04045, ((np.maximum(display, 0.04045) + 0.055) / 1.055) ** 2.4, display / 12.92)
+        linear = colorimetry.from_display(display)
     else:
         linear = np.asarray(target, np.float64)
         where = None

@@ -44,6 +44,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 
 from .. import colorimetry, km
 from .._errors import DiffwashError
+from .._shard import shard_leading, unpad
 
 __all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2", "BATCH_MODES"]
 
@@ -452,7 +453,8 @@ def fit_rows(
     `batch` says how they run:
 
     - `"vmap"`: one compiled program, `jax.vmap`ped over the pigments (the
-      way to fit many pigments on an accelerator);
+      way to fit many pigments on an accelerator), the pigments sharded over
+      all devices (`diffwash._shard`; docs/scaling.md);
     - `"loop"`: the unbatched program once per pigment. On a CPU with a few
       pigments this is the faster of the two, warm and cold: a vmapped
       `while_loop` steps every pigment until the slowest has converged, and
@@ -490,8 +492,9 @@ def fit_rows(
     runs = []
     for s in range(n_starts):
         theta0 = {k: v[:, s] for k, v in starts.items()}
-        if vmapped:
-            out = fn(rows, theta0)
+        if vmapped:  # the pigments split over all devices (a no-op with one)
+            (rows_s, theta_s), _ = shard_leading((rows, theta0), P)
+            out = unpad(fn(rows_s, theta_s), P)
         else:
             each = [fn(jax.tree.map(lambda a: a[p], rows), {k: v[p] for k, v in theta0.items()}) for p in range(P)]
             out = jax.tree.map(lambda *a: np.stack([np.asarray(x) for x in a]), *each)

@@ -58,7 +58,9 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+
 import numpy as np
+from PIL import Image
 from scipy.special import ndtr
 
 #: JFIF's YCbCr to RGB matrix (rows R, G, B; columns Y, Cb, Cr), ITU-T T.871, and its inverse.
@@ -95,8 +97,6 @@ def jpeg_steps(path: str | os.PathLike | None) -> JpegSteps | None:
     """The DC quantisation steps of a JPEG file (None for other files or no file)."""
     if path is None:
         return None
-    from PIL import Image
-
     try:
         with Image.open(path) as im:
             if im.format != "JPEG":

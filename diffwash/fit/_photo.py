@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import check_float32, finite_number, read_json
 from ..shading import DEFAULT_PAPER
@@ -447,5 +448,4 @@ def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibra
 
 def linearise(display: np.ndarray) -> np.ndarray:
     """Display sRGB in [0, 1] to linear (the IEC 61966-2-1 transfer function), in numpy."""
-    v = np.asarray(display, np.float64)
-    return np.where(v > 0.04045, ((np.maximum(v, 0.04045) + 0.055) / 1.055) ** 2.4, v / 12.92)
+    return colorimetry.from_display(display)

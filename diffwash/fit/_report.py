@@ -15,21 +15,23 @@ from typing import Any
 
 import numpy as np
 
-from .._io import atomic_path
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+
+from .. import colorimetry
+from .._io import atomic_path, read_image
+from .._render import render
 
 __all__ = ["save_swatch_report", "save_table_report", "save_image_report"]
 
 
 def _display(linear: Any) -> np.ndarray:
-    v = np.clip(np.asarray(linear, np.float64), 0, 1)
-    return np.where(v > 0.0031308, 1.055 * v ** (1 / 2.4) - 0.055, 12.92 * v)
+    return colorimetry.to_display(linear)
 
 
 def _figure(**kwargs: Any) -> Any:
     """A matplotlib `Figure` outside pyplot: no backend is chosen or switched (the caller's, e.g. a
     notebook's inline plotting, stays as it is) and nothing is left open."""
-    from matplotlib.figure import Figure
-
     return Figure(**kwargs)
 
 
@@ -37,8 +39,6 @@ def _pairs(
     ax, groups: Sequence[tuple[str, Sequence[tuple[str, Any, Any, float]]]], title: str, step: float = 1.6
 ) -> None:
     """Draw rows of observed|fitted squares: groups = [(row label, [(caption, obs, fit, dE), ...])]."""
-    from matplotlib.patches import Rectangle
-
     n_cols = max(len(items) for _, items in groups)
     for r, (label, items) in enumerate(groups):
         y = -r * step
@@ -79,8 +79,6 @@ def save_swatch_report(path: str | os.PathLike, fit: Any, photo: np.ndarray | No
     - `photo`: the (first) photo as displayed, (H, W, 3) in [0, 1], to show with its boxes.
     - `layout`: that photo's `Layout`.
     """
-    from matplotlib.patches import Rectangle
-
     groups = []
     for ground in ("paper", "black"):
         items = [p for p in fit.patches if p.ground == ground]
@@ -136,8 +134,6 @@ def save_swatch_report(path: str | os.PathLike, fit: Any, photo: np.ndarray | No
 
 
 def _more(ax, coats: np.ndarray, more: list[tuple[str, np.ndarray]]) -> None:
-    from matplotlib.patches import Rectangle
-
     for r, (ground, pred) in enumerate(more):
         for c, rgb in enumerate(pred):
             ax.add_patch(Rectangle((c, -r * 1.2), 0.9, 1, color=_display(rgb)))
@@ -186,9 +182,6 @@ def save_image_report(path: str | os.PathLike, fit: Any, targets: Sequence[Any],
 
     `targets` and `scenes` are what `fit_image` was given (paths or arrays; Scenes).
     """
-    from .._io import read_image
-    from .._render import render
-
     scenes = list(scenes) * (len(targets) if len(scenes) == 1 else 1)
     n = len(targets)
     fig = _figure(figsize=(13, 2.8 * n + 0.4))

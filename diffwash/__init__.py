@@ -48,3 +48,7 @@ from ._scene import save_scene as save_scene
 from ._version import __version__ as __version__
 from .pigments import Pigment as Pigment
 from .shading import Params as Params
+from . import library as library
+from . import measurements as measurements
+from . import mixing as mixing
+from . import spectral as spectral

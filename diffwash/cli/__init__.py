@@ -26,7 +26,7 @@ __all__ = ["main", "COMMANDS", "add_image_limit"]
 
 #: Subcommand modules, in the order `diffwash --help` lists them.
 COMMANDS = (
-    "pigments", "swatches", "render", "bake", "export", "preview", "swatch_card", "fit_swatch", "fit_image", "demo",
+    "pigments", "swatches", "render", "bake", "export", "preview", "swatch_card", "fit_swatch", "fit_image", "predict", "demo",
 )  # fmt: skip
 
 

@@ -25,7 +25,7 @@ from ..fit import (
     save_swatch_report,
     save_table_report,
 )
-from . import add_image_limit
+from . import _library_fit, add_image_limit
 
 NAME = "fit-swatch"
 HELP = "fit pigment K and S to a swatch-card photo or a table of measured colours"
@@ -49,6 +49,9 @@ def add_arguments(p) -> None:
     p.add_argument("--loss", choices=("noise", "de2000", "cie94", "lab", "srgb"),
                    help="residuals (default: noise for photos -- weighted by each patch's noise, with intervals -- "
                         "de2000 for tables)")
+    p.add_argument("--mixing", choices=("duncan", "weights"), default="duncan",
+                   help="spectral or mixture table: Duncan's concentration-weighted sums (default), or with a fitted "
+                        "mixing weight per pigment (docs/mixing.md says what each gives on pairs never seen mixed)")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"),
@@ -144,6 +147,9 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
 
 
 def _run_table(args, out: Path, report: Path | None) -> int:
+    mixtures = _library_fit.wants_library(args.table, args.linear)
+    if mixtures is not None:  # spectral bands or mixtures: one joint fit, one library
+        return _library_fit.run_library(args, mixtures, out, report)
     t0 = time.perf_counter()
     if args.loss == "noise":
         raise DiffwashError("a table has no pixels to estimate noise from: choose de2000, cie94, lab or srgb",

@@ -42,3 +42,8 @@ from ._table import TableFit as TableFit
 from ._table import fit_table as fit_table
 from ._table import read_ntu_wpsm as read_ntu_wpsm
 from ._table import read_table as read_table
+from ._mixfit import MixModel as MixModel
+from ._mixfit import MixtureFit as MixtureFit
+from ._mixfit import fit_mixtures as fit_mixtures
+from ._mixfit import pair_folds as pair_folds
+from ._mixfit import score as score_library

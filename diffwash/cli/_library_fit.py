@@ -1,0 +1,68 @@
+"""`diffwash fit-swatch --table` for spectral tables and mixtures: one joint fit, one library file.
+
+Single-pigment RGB tables (grounds paper and black, no mixtures) keep their own fit (`diffwash.fit.fit_table`);
+every other table goes through `diffwash.fit.fit_mixtures`.
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import DiffwashError, FailureError, measurements
+from .. import io as dio
+from ..fit import MixModel, fit_mixtures
+
+
+def _needs_library(table: str) -> bool:
+    """Band columns named by wavelength, or a `+` in the pigment column (a glance: the readers validate)."""
+    try:
+        with open(table, newline="", encoding="utf-8-sig") as f:
+            rows = csv.reader(f)
+            header = [h.strip().lower() for h in next(rows, [])]
+            if any(h.replace(".", "", 1).isdigit() for h in header):
+                return True
+            col = header.index("pigment") if "pigment" in header else 0
+            return any(len(r) > col and "+" in r[col] for r in rows)
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return False  # the table's own reader says what is wrong with it
+
+
+def wants_library(table: str, linear: bool) -> measurements.Measurements | None:
+    """The table's measurements if it needs the joint mixture fit (spectral, or with mixtures), else None
+    (single-pigment RGB tables keep `diffwash.fit.fit_table` and its reader's errors)."""
+    if not _needs_library(table):
+        return None
+    return measurements.read_measurements(table, linear=linear)
+
+
+def run_library(args, m: measurements.Measurements, out: Path, report: Path | None) -> int:
+    """Fit every pigment of `m` jointly and write the library to `out`."""
+    t0 = time.perf_counter()
+    for flag in ("plain", "thickness", "loss", "batch"):
+        if getattr(args, flag):
+            raise DiffwashError("does not apply to a spectral or mixture table (fitted jointly: see docs/mixing.md)",
+                                field=f"--{flag}")  # fmt: skip
+    if report is not None:
+        raise DiffwashError("no report picture for a spectral or mixture table yet (the library holds per-row "
+                            "residuals)", field="--report")  # fmt: skip
+    model = MixModel(weights=args.mixing == "weights", surface=args.surface == "saunderson")
+    fit = fit_mixtures(m, model=model, max_steps=args.max_steps)
+    kind = f"{len(m.wavelengths)} bands" if m.spectral else "sRGB, fitted as smooth spectra"
+    s = fit.summary()
+    print(f"{len(fit.library.names)} pigments from {len(m)} rows ({int(np.sum(m.is_mixture))} mixtures; {kind}); "
+          f"model: {', '.join(f'{k}={v}' for k, v in model.describe().items())}")  # fmt: skip
+    print(f"  mean CIEDE2000 {s['mean_de2000']:.2f} (median {s['median_de2000']:.2f}, 95th percentile "
+          f"{s['p95_de2000']:.2f}, max {s['max_de2000']:.2f}); {100 * s['share_de_ab_5']:.1f}% within dE*ab 5")
+    status = "converged" if fit.converged else "did not converge"
+    print(f"  Levenberg-Marquardt {status} in {fit.iterations} steps")
+    if not fit.converged and not args.allow_unconverged:
+        raise FailureError("the fit did not converge; nothing was written (use --allow-unconverged to write it "
+                           "anyway, or raise --max-steps)")  # fmt: skip
+    dio.write_json(out, fit.library.to_dict())
+    print(f"wrote {out}")
+    print(f"done in {time.perf_counter() - t0:.2f} s")
+    return 0

@@ -1,0 +1,43 @@
+"""Predict the colour of layers of a library's pigments, single or mixed: LIBRARY.json --table QUERIES.csv -o PRED.csv.
+
+Each query row `pigment,amount,ground` (`P1+P3,0.01+0.02,paper` for a mixture) gets its predicted `r,g,b`
+(8-bit sRGB, unclipped), `L*,a*,b*` (CIELAB, the library's illuminant and observer) and, for a spectral
+library, its reflectance on the library's bands. The Python equivalent is
+diffwash.library.predict(LIBRARY, QUERIES).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from .. import DiffwashError, library, measurements
+from .. import io as dio
+
+NAME = "predict"
+HELP = "predict the colour of single paints and mixtures from a pigment library (fit-swatch --table)"
+USES_JAX = True
+
+
+def add_arguments(p) -> None:
+    p.add_argument("library", metavar="LIBRARY.json", help="a library written by diffwash fit-swatch --table")
+    p.add_argument("--table", required=True, metavar="CSV", help="the rows to predict: pigment,amount,ground")
+    p.add_argument("-o", "--output", required=True, metavar="CSV", help="the predictions to write")
+
+
+def run(args) -> int:
+    t0 = time.perf_counter()
+    out = Path(args.output)
+    if out.suffix.lower() != ".csv":
+        raise DiffwashError(f"must be a .csv file, got {out.name!r}", field="--output")
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise DiffwashError("output folder does not exist", file=out.parent)
+    dio.refuse_overwriting_inputs({"--output": out}, [args.library, args.table])
+    lib = library.load_library(args.library)
+    queries = measurements.read_queries(args.table)
+    pred = lib.predict(queries)
+    library.write_prediction(out, queries, pred)
+    print(f"{len(queries)} rows predicted from {len(lib.names)} pigments ({'spectral, ' + str(len(pred.bands)) + ' bands' if lib.spectral else 'sRGB'})")
+    print(f"wrote {out}")
+    print(f"done in {time.perf_counter() - t0:.2f} s")
+    return 0

@@ -1,0 +1,391 @@
+r"""Joint fit of mixable pigments to a measurement table: single paints and mixtures at once.
+
+Every pigment's K and S per band, its amount law and (as a model term) its
+mixing weight are fitted to all rows of a `diffwash.measurements.Measurements`
+together, through the layer law of `diffwash.mixing`:
+
+$$ Kx = \sum_i c_i K_i t_i(A), \quad Sx = \sum_i c_i S_i t_i(A), \quad
+   c_i = \frac{w_i a_i}{\sum_j w_j a_j}, \quad t_i(A) = (A/a_0)^{\gamma_i}, $$
+
+then `km.layer` over the row's measured ground (with, as a model term,
+Saunderson's surface correction of internal reflectance $k_2$).
+
+- **Spectral tables** (reflectance per band): least squares on reflectance,
+  band by band coupled only by the shared terms (amount laws, weights, $k_2$),
+  solved by `BandLevenbergMarquardt` (Schur complement over the bands).
+- **RGB tables** (8-bit sRGB): the pigments are still spectral, on a 380-780 nm,
+  10 nm grid, with $\log K(\lambda)$ and $\log S(\lambda)$ smooth (a basis of
+  Gaussian bumps and a second-difference penalty): generic priors only. They are
+  seen through the sRGB observation (D65, CIE 1931 2-degree), residuals in
+  CIEDE2000; a channel clipped at 0 or 255 is a bound, not a measurement.
+  Per-channel (3-band) mixing is measured to fail on mixtures (docs/mixing.md).
+
+Which terms generalise to pairs never seen mixed is measured in docs/mixing.md.
+
+**References:**
+
+- D. R. Duncan, "The colour of pigment mixtures", Proc. Phys. Soc. 52 (1940).
+- J. L. Saunderson, JOSA 32 (1942).
+- B. Triggs et al., "Bundle adjustment: a modern synthesis" (2000).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from .. import colorimetry, km, mixing, spectral
+from ..library import Library
+from ..measurements import Measurements
+from ._bandlsq import BandLevenbergMarquardt
+
+__all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score", "residuals", "RGB_GRID"]
+
+#: The grid of the spectral pigments an RGB table is fitted with (nm).
+RGB_GRID = tuple(float(w) for w in range(380, 781, 10))
+#: Saunderson's k2 lies in (0, K2_MAX).
+K2_MAX = 0.9
+#: Spectral residuals are log(R + LOG_FLOOR): relative errors, as the eye sees dark colours.
+LOG_FLOOR = 0.01
+#: Ridge on an RGB fit's spectral coefficients, towards their start (CIEDE2000 units per unit log K or S).
+RGB_RIDGE = 0.1
+#: An RGB fit stops when a step changes the parameters and the loss by less than this (relative): its flat
+#: directions (spectra three channels cannot tell apart) otherwise creep on for hundreds of steps in float32.
+RGB_RTOL = 1e-2
+
+
+@dataclass(frozen=True)
+class MixModel:
+    """The model terms of a mixture fit.
+
+    **Fields:**
+
+    - `gamma`: each pigment's amount-law exponent fitted (else thickness = amount / reference).
+    - `weights`: each pigment's mixing weight fitted (else all 1: Duncan).
+    - `surface`: Saunderson's $k_2$ fitted (one for the table), else none.
+    - `prior`: strength of the weak priors (ridge on the shared terms; smoothness for RGB tables).
+    - `own`: each pigment's amount law applied to its own amount, `Kx = sum_i K_i t_i(a_i)`, instead of
+      Duncan's concentrations at the layer's total amount (measured worse: docs/mixing.md; kept to reproduce it).
+    """
+
+    gamma: bool = True
+    weights: bool = False
+    surface: bool = False
+    prior: float = 1.0
+    own: bool = False
+
+    def describe(self) -> dict[str, Any]:
+        return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
+                "own": self.own}
+
+
+@dataclass(frozen=True)
+class MixtureFit:
+    """The result of `fit_mixtures`: a `Library` and how well it fits each row.
+
+    **Fields:**
+
+    - `library`: the fitted `diffwash.library.Library` (its `fit` holds the record below).
+    - `delta_e`: CIEDE2000 of each row, shape (N,); `delta_e_ab`: CIE 1976 dE*ab.
+    - `converged`, `iterations`, `seconds`: how the solver ended.
+    """
+
+    library: Library
+    delta_e: np.ndarray
+    delta_e_ab: np.ndarray
+    converged: bool
+    iterations: int
+    seconds: float
+    model: MixModel = field(default_factory=MixModel)
+
+    def summary(self) -> dict[str, float]:
+        """Mean, median, 95th percentile and max dE2000, and the share within dE*ab 5."""
+        d = self.delta_e
+        return {"mean_de2000": float(d.mean()), "median_de2000": float(np.median(d)),
+                "p95_de2000": float(np.percentile(d, 95)), "max_de2000": float(d.max()),
+                "share_de_ab_5": float(np.mean(self.delta_e_ab <= 5))}  # fmt: skip
+
+    def save(self, path) -> None:
+        """Write the library (with its fit record) as JSON."""
+        self.library.save(path)
+
+
+def _dense(m: Measurements, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    index = {n: i for i, n in enumerate(names)}
+    A = np.zeros((len(m), len(names)))
+    for r, (ps, amts) in enumerate(zip(m.pigments, m.amounts)):
+        for n, a in zip(ps, amts):
+            A[r, index[n]] += a
+    G = np.stack([m.grounds[g] for g in m.ground])
+    return A, G
+
+
+def _layer(K, S, A, G, gamma, w, k2, own: bool = False):
+    """Reflectance of rows `A` (N, P) over grounds `G` (N, B); k2 may be 0 (traced)."""
+    law = mixing.AmountLaw(gamma=gamma)
+    if own:  # experiment: each pigment's law at its own amount, t_i(a_i)
+        u = law(A) * w
+        Kx, Sx = u @ K, u @ S
+    else:
+        Kx, Sx = mixing.optical_depths(K, S, A, law, w)
+    g = mixing.saunderson_in(G, k2)
+    R, T = km.layer(Kx, Sx, 1.0)
+    return mixing.saunderson_out(km.over(R, T, g), k2)
+
+
+def _shared(shared, P: int, model: MixModel):
+    """Amount-law exponents, mixing weights and k2 from the shared parameters (frozen ones at their defaults)."""
+    gam = jnp.exp(shared[:P]) if model.gamma else jnp.ones(P, shared.dtype)
+    w = jnp.exp(shared[P : 2 * P]) if model.weights else jnp.ones(P, shared.dtype)
+    k2 = K2_MAX * jax.nn.sigmoid(shared[2 * P]) if model.surface else jnp.zeros((), shared.dtype)
+    return gam, w, k2
+
+
+def _shared_prior(shared, P: int, model: MixModel):
+    """Weak ridge: exponents near 1, weights near 1 (their common scale is otherwise free), k2 near 0.04."""
+    lam = 0.01 * model.prior
+    return jnp.concatenate([lam * shared[: 2 * P], lam * (shared[2 * P :] + 3.0)])
+
+
+def _init_band(m: Measurements, A: np.ndarray, names: list[str]) -> np.ndarray:
+    """log K, log S per band from each pigment's thickest single layer: S = 1, K/S from its R_inf."""
+    P = len(names)
+    Y = m.values
+    B = Y.shape[1]
+    logK, logS = np.zeros((B, P)), np.zeros((B, P))
+    for i in range(P):
+        single = np.flatnonzero((A[:, i] > 0) & (np.count_nonzero(A, axis=1) == 1))
+        rows = single if len(single) else np.flatnonzero(A[:, i] > 0)
+        r = np.clip(Y[rows[np.argmax(A[rows].sum(axis=1))]], 0.02, 0.95)
+        logK[:, i] = np.log((1 - r) ** 2 / (2 * r))
+    return np.concatenate([logK, logS], axis=1)
+
+
+def _spectral_problem(A, G, Y, band0, P: int, model: MixModel):
+    eps = 1e-3 * model.prior
+
+    def fn(y, args):
+        band, shared = y
+        gam, w, k2 = _shared(shared, P, model)
+        K, S = jnp.exp(band[:, :P]).T, jnp.exp(band[:, P:]).T
+        R = _layer(K, S, A, G, gam, w, k2, model.own)
+        per_band = jnp.concatenate([(jnp.log(R + LOG_FLOOR) - jnp.log(Y + LOG_FLOOR)).T, eps * (band - band0)], axis=1)
+        return per_band, _shared_prior(shared, P, model)
+
+    return fn
+
+
+def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol: float):
+    A, G = _dense(m, names)
+    P = len(names)
+    dtype = jnp.zeros(()).dtype
+    band0 = jnp.asarray(_init_band(m, A, names), dtype)
+    shared0 = jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0)
+    fn = _spectral_problem(jnp.asarray(A, dtype), jnp.asarray(G, dtype), jnp.asarray(m.values, dtype), band0, P, model)
+    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
+    sol = optx.least_squares(fn, solver, (band0, shared0), max_steps=max_steps, throw=False)
+    band, shared = sol.value
+    gam, w, k2 = _shared(shared, P, model)
+    K, S = np.exp(np.asarray(band[:, :P], np.float64)).T, np.exp(np.asarray(band[:, P:], np.float64)).T
+    ok = bool(sol.result == optx.RESULTS.successful)
+    return K, S, np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2), ok, int(sol.stats["num_steps"])
+
+
+def _rgb_basis(n: int = 10) -> np.ndarray:
+    """Gaussian bumps over RGB_GRID, shape (B, n) (plus a constant column)."""
+    wl = np.asarray(RGB_GRID)
+    c = np.linspace(wl[0], wl[-1], n)
+    width = (c[1] - c[0]) * 0.8
+    phi = np.exp(-0.5 * ((wl[:, None] - c[None, :]) / width) ** 2)
+    return np.concatenate([np.ones((len(wl), 1)), phi], axis=1)
+
+
+def _rgb_init(m: Measurements, A: np.ndarray, phi: np.ndarray, obs: spectral.Observation) -> np.ndarray:
+    """Coefficients (2P, n) from each pigment's thickest single layer: K/S per channel spread over its
+    wavelengths (where the channel's row of the observation weighs most), projected onto the basis."""
+    P = A.shape[1]
+    W = np.abs(np.asarray(obs.to_rgb, np.float64))
+    W = W / W.sum(axis=1, keepdims=True)  # (B, 3): how much each band belongs to each channel
+    coef = np.zeros((2 * P, phi.shape[1]))
+    pinv = np.linalg.pinv(phi)
+    for i in range(P):
+        single = np.flatnonzero((A[:, i] > 0) & (np.count_nonzero(A, axis=1) == 1))
+        rows = single if len(single) else np.flatnonzero(A[:, i] > 0)
+        r = np.clip(m.values[rows[np.argmax(A[rows].sum(axis=1))]], 0.02, 0.95)
+        logks = W @ np.log((1 - r) ** 2 / (2 * r))
+        coef[i] = pinv @ logks
+    return coef
+
+
+def _rgb_problem(A, G, Y, lo, hi, phi, coef0, P: int, model: MixModel, white):
+    D = np.diff(np.eye(phi.shape[1] - 1), n=2, axis=0)
+    smooth = 0.3 * model.prior
+
+    def fn(y, args):
+        flat, shared = y
+        coef = flat.reshape(2 * P, phi.shape[1])
+        gam, w, k2 = _shared(shared, P, model)
+        logks = coef @ phi.T  # (2P, B)
+        K, S = jnp.exp(logks[:P]), jnp.exp(logks[P:])
+        rgb = _layer(K, S, A, G, gam, w, k2, model.own) @ args
+        clamp = jax.lax.stop_gradient(rgb)
+        target = jnp.where(hi, jnp.maximum(Y, clamp), jnp.where(lo, jnp.minimum(Y, clamp), Y))
+        lab_p = colorimetry.xyz_to_lab(colorimetry.linear_srgb_to_xyz(rgb), white)
+        lab_m = colorimetry.xyz_to_lab(colorimetry.linear_srgb_to_xyz(target), white)
+        r = colorimetry.delta_e_2000_residuals(lab_m, lab_p).ravel()
+        # One "band" holding every coefficient: BandLevenbergMarquardt is then a dense LM by normal equations.
+        ridge = RGB_RIDGE * model.prior * (coef - coef0).ravel()  # pins the directions three channels leave free
+        per_band = jnp.concatenate([r, smooth * (coef[:, 1:] @ D.T).ravel(), ridge])[None]
+        return per_band, _shared_prior(shared, P, model)
+
+    return fn
+
+
+def _fit_rgb(m: Measurements, names, model: MixModel, max_steps: int, rtol: float):
+    obs = spectral.observation(RGB_GRID)
+    A, G3 = _dense(m, names)
+    P = len(names)
+    dtype = jnp.zeros(()).dtype
+    phi = _rgb_basis()
+    # Each ground's spectrum: flat, scaled per channel to its measured colour (the smoothest fit there is).
+    grounds = {g: _flat_ground(v, obs) for g, v in m.grounds.items()}
+    G = np.stack([grounds[g] for g in m.ground])
+    coef0 = jnp.asarray(_rgb_init(m, A, phi, obs), dtype)
+    shared0 = jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0)
+    cast = lambda x: jnp.asarray(x, dtype)  # noqa: E731
+    fn = _rgb_problem(cast(A), cast(G), cast(m.values), jnp.asarray(m.lo), jnp.asarray(m.hi), cast(phi), coef0, P, model,
+                      cast(colorimetry.WHITE_D65))  # fmt: skip
+    (flat, shared), ok, steps = _solve_in_chunks(fn, (coef0.reshape(1, -1), shared0), cast(obs.to_rgb), max_steps,
+                                                 rtol)  # fmt: skip
+    coef = flat.reshape(coef0.shape)
+    gam, w, k2 = _shared(shared, P, model)
+    logks = np.asarray(coef, np.float64) @ phi.T
+    out = (np.exp(logks[:P]), np.exp(logks[P:]), np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2))
+    return (*out, ok, steps), grounds, obs
+
+
+#: Steps per call of the solver in `_solve_in_chunks`.
+CHUNK = 40
+
+
+def _solve_in_chunks(fn, y, args, max_steps: int, rtol: float):
+    """Levenberg-Marquardt in chunks of CHUNK steps, ended by the solver's own test or a plateau of the loss.
+
+    In float32 an RGB fit reaches a point where no step lowers the loss by a representable amount: the
+    trust region then rejects every step and optimistix's Cauchy test (which needs an accepted step) never
+    fires. A chunk that lowers the loss by less than `rtol` relative is that plateau: converged.
+    """
+    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
+    loss = jax.jit(lambda y: sum(jnp.sum(r * r) for r in jax.tree_util.tree_leaves(fn(y, args))))
+    prev, steps = float(loss(y)), 0
+    while steps < max_steps:
+        sol = optx.least_squares(fn, solver, y, args=args, max_steps=min(CHUNK, max_steps - steps), throw=False)
+        y, steps = sol.value, steps + int(sol.stats["num_steps"])
+        now = float(loss(y))
+        if sol.result == optx.RESULTS.successful or prev - now <= rtol * prev:
+            return y, True, steps
+        prev = now
+    return y, False, steps
+
+
+def _flat_ground(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.ndarray:
+    """A smooth spectrum whose linear sRGB is `linear_rgb`: the least-norm combination of three smooth bumps."""
+    wl = np.asarray(RGB_GRID)
+    bumps = np.exp(-0.5 * ((wl[:, None] - np.array([450.0, 550.0, 620.0])) / 60) ** 2)  # (B, 3)
+    M = np.asarray(obs.to_rgb, np.float64).T @ bumps  # (3, 3)
+    return bumps @ np.linalg.solve(M, np.asarray(linear_rgb, np.float64))
+
+
+def fit_mixtures(
+    m: Measurements, *, model: MixModel = MixModel(), max_steps: int = 400, rtol: float | None = None, **observe: Any
+) -> MixtureFit:
+    r"""Fit every pigment of a measurement table jointly, single paints and mixtures (module docstring).
+
+    **Arguments:**
+
+    - `m`: the `diffwash.measurements.Measurements` (spectral or RGB).
+    - `model`: the `MixModel` terms (default: Duncan with a fitted amount law per pigment).
+    - `max_steps`: Levenberg-Marquardt steps at most.
+    - `rtol`: the solver's tolerance (default: 1e-4 in float32, 1e-7 in float64).
+    - `observe`: `illuminant`, `observer`, `method` of the `diffwash.spectral.Observation`
+      (spectral tables; RGB tables are seen as sRGB: D65, CIE 1931 2-degree).
+
+    **Returns:** a `MixtureFit` (its `library` ready to save and predict with).
+    """
+    t0 = time.perf_counter()
+    names = m.names
+    if rtol is None:  # RGB: see RGB_RTOL
+        rtol = 1e-7 if jnp.zeros(()).dtype == jnp.float64 else (1e-4 if m.spectral else RGB_RTOL)
+    if m.spectral:
+        obs = m.observation(**observe)
+        K, S, gam, w, k2, ok, steps = _fit_spectral(m, names, model, max_steps, rtol)
+        grounds = dict(m.grounds)
+    else:
+        (K, S, gam, w, k2, ok, steps), grounds, obs = _fit_rgb(m, names, model, max_steps, rtol)
+    w = w / np.exp(np.mean(np.log(w)))  # the weights' common scale is free: geometric mean 1
+    palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
+                             weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
+    lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2)
+    de, de_ab = residuals(lib, m)
+    fit = MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model)
+    record = {"model": model.describe(), "table": m.path, "converged": ok, "iterations": steps,
+              "summary": fit.summary(), "rows": _row_record(m, de, de_ab)}  # fmt: skip
+    lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=record)
+    return MixtureFit(lib, de, de_ab, ok, steps, fit.seconds, model)
+
+
+def measured_lab(m: Measurements, obs: spectral.Observation) -> np.ndarray:
+    """CIELAB of a table's measured rows (spectral: through `obs`; RGB: sRGB, D65)."""
+    if m.spectral:
+        return np.asarray(obs.lab(jnp.asarray(m.values)), np.float64)
+    return np.asarray(colorimetry.linear_srgb_to_lab(jnp.asarray(m.values)), np.float64)
+
+
+def residuals(lib: Library, m: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """CIEDE2000 and CIE 1976 dE*ab between a library's predictions and a table's rows, shape (N,) each."""
+    pred = lib.predict(m.pigments, m.amounts, m.ground)
+    lab_m = measured_lab(m, lib.observation)
+    lab_p = pred.lab if m.spectral else np.asarray(colorimetry.linear_srgb_to_lab(jnp.asarray(pred.linear_srgb)))
+    de = np.asarray(colorimetry.delta_e_2000(jnp.asarray(lab_m), jnp.asarray(lab_p)), np.float64)
+    return de, np.linalg.norm(lab_m - lab_p, axis=1)
+
+
+def _row_record(m: Measurements, de: np.ndarray, de_ab: np.ndarray) -> list[dict[str, Any]]:
+    lines = m.lines if m.lines is not None else np.arange(len(m)) + 2
+    return [{"line": int(lines[i]), "pigment": "+".join(m.pigments[i]),
+             "amount": "+".join(f"{a:g}" for a in m.amounts[i]), "ground": str(m.ground[i]),
+             "de2000": round(float(de[i]), 4), "de_ab": round(float(de_ab[i]), 4)} for i in range(len(m))]  # fmt: skip
+
+
+def pairs(m: Measurements) -> list[tuple[str, ...]]:
+    """The distinct pigment sets mixed in a table's mixture rows (sorted names), in order of appearance."""
+    return list(dict.fromkeys(tuple(sorted(set(p))) for p, mix in zip(m.pigments, m.is_mixture) if mix))
+
+
+def pair_folds(m: Measurements, folds: int = 4, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Leave-pairs-out cross-validation: `(train, test)` row masks, each fold holding out the mixtures of
+    about `1/folds` of the pairs (every single paint stays in training).
+
+    The test rows are pairs the fit never saw mixed: what a library must predict for a new pair.
+    """
+    ps = pairs(m)
+    order = np.random.default_rng(seed).permutation(len(ps))
+    key = [tuple(sorted(set(p))) for p in m.pigments]
+    out = []
+    for f in range(folds):
+        held = {ps[i] for i in order[f::folds]}
+        test = np.array([k in held for k in key]) & m.is_mixture
+        out.append((~test, test))
+    return out
+
+
+def score(lib: Library, m: Measurements) -> dict[str, float]:
+    """Share of rows within CIE dE*ab 5 and mean CIEDE2000 of a library's predictions of a table's rows."""
+    de, de_ab = residuals(lib, m)
+    return {"rows": len(m), "share_de_ab_5": float(np.mean(de_ab <= 5)), "mean_de2000": float(np.mean(de))}

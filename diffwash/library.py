@@ -1,0 +1,284 @@
+r"""A library of mixable pigments: what `diffwash fit-swatch --table` writes and `diffwash predict` reads.
+
+A `Library` holds a `diffwash.mixing.Palette` (each pigment's K and S per band,
+its amount law and its mixing weight), the grounds it was measured on, the
+`diffwash.spectral.Observation` that turns its reflectance into colour, the
+surface term and the record of the fit that made it. Its `predict` gives the
+reflectance, sRGB and CIELAB of any layer of its pigments, single or mixed,
+in one call:
+
+```python
+lib = diffwash.library.load_library("paints.json")  # written by diffwash fit-swatch --table
+pred = lib.predict(["P1", "P1+P4"], ["0.05", "0.02+0.03"], ["paper", "paper"])
+pred.srgb8, pred.lab, pred.reflectance
+```
+
+The file is JSON:
+
+```
+{"format": "diffwash-library", "version": 1,
+ "observation": {"wavelengths": [380, ...], "illuminant": "D65", "observer": "...", "method": "ASTM E308"},
+ "pigments": [{"name": "P1", "K": [...], "S": [...], "amount_law": {"kind": "power", "reference": 0.05,
+               "gamma": 0.8}, "mixing_weight": 1.0}, ...],
+ "grounds": {"paper": [...]}, "surface": {"k2": 0.0}, "fit": {...}}
+```
+
+`"observation": {"bands": "sRGB"}` for a library per linear sRGB channel.
+"""
+
+from __future__ import annotations
+
+import csv
+import io as _stdio
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from . import colorimetry, mixing, spectral
+from ._errors import DiffwashError
+from ._io import atomic_path, read_json, write_json
+from .measurements import Queries, parse_mixture, read_queries
+
+__all__ = ["Library", "Prediction", "load_library", "predict"]
+
+FORMAT = "diffwash-library"
+VERSION = 1
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Predicted colour of layers, one row per query.
+
+    **Fields:**
+
+    - `reflectance`: per band of the library's grid (linear sRGB for an sRGB library), shape (N, B).
+    - `linear_srgb`: linear sRGB (D65, unclipped), shape (N, 3).
+    - `lab`: CIELAB relative to the observation's white, shape (N, 3).
+    - `bands`: the band names (`"380"`, ... or `r, g, b`).
+    """
+
+    reflectance: np.ndarray
+    linear_srgb: np.ndarray
+    lab: np.ndarray
+    bands: tuple[str, ...]
+
+    @property
+    def srgb8(self) -> np.ndarray:
+        """Display sRGB on the 0-255 scale, unclipped floats, shape (N, 3)."""
+        return 255 * np.asarray(colorimetry.srgb_encode(self.linear_srgb), np.float64)
+
+
+@eqx.filter_jit
+def _forward(palette: mixing.Palette, amounts, ground, k2, obs: spectral.Observation):
+    R = palette.reflectance(amounts, ground, k2)
+    return R, obs.linear_srgb(R), obs.lab(R)
+
+
+@dataclass(frozen=True)
+class Library:
+    """Mixable pigments, their grounds and how their reflectance is seen (module docstring).
+
+    **Fields:**
+
+    - `palette`: the `diffwash.mixing.Palette`.
+    - `grounds`: ground name -> reflectance on the palette's bands.
+    - `observation`: the `diffwash.spectral.Observation` of those bands.
+    - `k2`: Saunderson's internal surface reflectance (0: none).
+    - `fit`: the fit's record (model terms, per-row residuals, summary), JSON-ready, or None.
+    """
+
+    palette: mixing.Palette
+    grounds: dict[str, np.ndarray]
+    observation: spectral.Observation
+    k2: float = 0.0
+    fit: dict[str, Any] | None = field(default=None, repr=False)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.palette.names
+
+    @property
+    def spectral(self) -> bool:
+        return self.observation.spectral
+
+    def amounts(self, pigments, amounts, *, file: Any = None, lines: Any = None) -> np.ndarray:
+        """Rows of pigment names and amounts as a dense `(N, P)` amount matrix (repeated names add up).
+
+        A name the library lacks raises a `DiffwashError` naming the file, line and column.
+        """
+        index = {n.lower(): i for i, n in enumerate(self.names)}
+        out = np.zeros((len(pigments), len(self.names)))
+        for r, (names, amts) in enumerate(zip(pigments, amounts)):
+            for n, a in zip(names, amts):
+                i = index.get(n.lower())
+                if i is None:
+                    where = f"line {int(lines[r])}: pigment" if lines is not None else f"row {r + 1}: pigment"
+                    raise DiffwashError(f"no pigment {n!r} in the library (it has {', '.join(self.names)})",
+                                        file=file, field=where)  # fmt: skip
+                out[r, i] += a
+        return out
+
+    def ground_matrix(self, grounds, *, file: Any = None, lines: Any = None) -> np.ndarray:
+        """Each row's ground reflectance, shape (N, B); an unknown ground raises a `DiffwashError`."""
+        known = {k.lower(): v for k, v in self.grounds.items()}
+        rows = []
+        for r, g in enumerate(grounds):
+            v = known.get(str(g).lower())
+            if v is None:
+                where = f"line {int(lines[r])}: ground" if lines is not None else f"row {r + 1}: ground"
+                raise DiffwashError(f"no ground {g!r} in the library (it has {', '.join(self.grounds)})", file=file,
+                                    field=where)  # fmt: skip
+            rows.append(v)
+        return np.asarray(rows, np.float64).reshape(len(rows), -1)
+
+    def predict(self, pigments, amounts=None, grounds=None) -> Prediction:
+        """Predict layers: a `Queries` (or a query CSV's path), or parallel lists of rows.
+
+        **Arguments:**
+
+        - `pigments`: a `diffwash.measurements.Queries`, a path to a query table,
+          or per row a name (`"P1+P3"`) or a tuple of names.
+        - `amounts`: per row `"0.01+0.02"` or a tuple of numbers (rows given as lists only).
+        - `grounds`: per row a ground's name (default: `paper`).
+
+        **Returns:** a `Prediction`. Bad input raises a `DiffwashError`.
+        """
+        q = _as_queries(pigments, amounts, grounds)
+        A = self.amounts(q.pigments, q.amounts, file=q.path, lines=q.lines)
+        G = self.ground_matrix(q.ground, file=q.path, lines=q.lines)
+        R, rgb, lab = _forward(self.palette, jnp.asarray(A), jnp.asarray(G), jnp.asarray(self.k2), self.observation)
+        return Prediction(np.asarray(R, np.float64), np.asarray(rgb, np.float64), np.asarray(lab, np.float64),
+                          self.observation.bands)  # fmt: skip
+
+    def to_dict(self) -> dict[str, Any]:
+        """The library as the JSON object of the module docstring."""
+        p = self.palette
+        gam = np.asarray(p.law.gamma, np.float64)
+        pigs = [{"name": n, "K": np.asarray(p.K[i], np.float64).tolist(), "S": np.asarray(p.S[i], np.float64).tolist(),
+                 "amount_law": {"kind": "power", "reference": p.law.reference, "gamma": float(gam[i])},
+                 "mixing_weight": float(p.weights[i])} for i, n in enumerate(p.names)]  # fmt: skip
+        out = {"format": FORMAT, "version": VERSION, "observation": self.observation.describe(), "pigments": pigs,
+               "grounds": {k: np.asarray(v, np.float64).tolist() for k, v in self.grounds.items()},
+               "surface": {"k2": float(self.k2)}}  # fmt: skip
+        if self.fit is not None:
+            out["fit"] = self.fit
+        return out
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the library as JSON (atomically)."""
+        write_json(path, self.to_dict())
+
+
+def _as_queries(pigments, amounts, grounds) -> Queries:
+    if isinstance(pigments, Queries):
+        return pigments
+    if isinstance(pigments, (str, os.PathLike)) and amounts is None:
+        return read_queries(pigments)
+    names, amts = [], []
+    for r, (p, a) in enumerate(zip(pigments, amounts)):
+        if isinstance(p, str):
+            n, v = parse_mixture(p, a if isinstance(a, str) else "+".join(map(repr, np.atleast_1d(a).tolist())),
+                                 line=r + 1)  # fmt: skip
+        else:
+            n, v = tuple(p), tuple(float(x) for x in a)
+        names.append(n)
+        amts.append(v)
+    g = ["paper"] * len(names) if grounds is None else [str(x).lower() for x in grounds]
+    return Queries(pigments=tuple(names), amounts=tuple(amts), ground=np.asarray(g))
+
+
+def _vector(d: dict, key: str, n: int | None, path: Any, where: str) -> np.ndarray:
+    v = d.get(key)
+    try:
+        a = np.asarray(v, np.float64)
+    except (TypeError, ValueError):
+        a = np.empty(0)
+    if a.ndim != 1 or (n is not None and a.shape[0] != n) or not np.all(np.isfinite(a)) or np.any(a < 0):
+        want = f"{n} " if n is not None else ""
+        raise DiffwashError(f"{key} must be a list of {want}finite numbers >= 0", file=path, field=f"{where}.{key}")
+    return a
+
+
+def _observation(o: Any, path: Any) -> spectral.Observation:
+    if not isinstance(o, dict):
+        raise DiffwashError("needs an observation (wavelengths, or \"bands\": \"sRGB\")", file=path,
+                            field="observation")  # fmt: skip
+    if o.get("bands") == "sRGB":
+        return spectral.observation()
+    try:
+        return spectral.observation(o.get("wavelengths") or [], illuminant=o.get("illuminant", "D65"),
+                                    observer=o.get("observer", spectral.DEFAULT_OBSERVER), method=o.get("method"))
+    except DiffwashError as e:  # the same problem, located in this file
+        raise DiffwashError(e.problem, file=path, field=f"observation.{e.field or 'wavelengths'}") from None
+
+
+def library_from_dict(d: Any, path: Any = None) -> Library:
+    """A `Library` from its JSON object (checked: one-line errors name the file and the field)."""
+    if not isinstance(d, dict) or d.get("format") != FORMAT:
+        raise DiffwashError(f"is not a {FORMAT} file (no \"format\": \"{FORMAT}\")", file=path)
+    obs = _observation(d.get("observation"), path)
+    nb = len(obs.bands)
+    pigs = d.get("pigments")
+    if not isinstance(pigs, list) or not pigs:
+        raise DiffwashError("needs a non-empty list of pigments", file=path, field="pigments")
+    K, S, gam, w, names = [], [], [], [], []
+    for i, p in enumerate(pigs):
+        where = f"pigments[{i}]"
+        if not isinstance(p, dict) or not isinstance(p.get("name"), str):
+            raise DiffwashError("each pigment needs a name", file=path, field=where)
+        K.append(_vector(p, "K", nb, path, where))
+        S.append(_vector(p, "S", nb, path, where))
+        law = p.get("amount_law") or {}
+        g = law.get("gamma", 1.0)
+        if not isinstance(g, (int, float)) or not np.isfinite(g) or g <= 0:
+            raise DiffwashError("gamma must be a number > 0", file=path, field=f"{where}.amount_law.gamma")
+        ref = float(law.get("reference", mixing.REFERENCE_AMOUNT))
+        gam.append(float(g))
+        w.append(float(p.get("mixing_weight", 1.0)))
+        names.append(p["name"])
+    grounds = {str(k).lower(): _vector(d.get("grounds", {}), k, nb, path, "grounds") for k in d.get("grounds", {})}
+    if not grounds:
+        raise DiffwashError("needs at least one ground", file=path, field="grounds")
+    palette = mixing.Palette(K=jnp.asarray(np.array(K)), S=jnp.asarray(np.array(S)),
+                             law=mixing.AmountLaw(gamma=jnp.asarray(gam), reference=ref),
+                             weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
+    k2 = float((d.get("surface") or {}).get("k2", 0.0))
+    return Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=d.get("fit"))
+
+
+def load_library(path: str | os.PathLike) -> Library:
+    """Read a library file (module docstring); bad content raises a `DiffwashError`."""
+    return library_from_dict(read_json(path), path)
+
+
+def predict(library: Library | str | os.PathLike, pigments, amounts=None, grounds=None) -> Prediction:
+    """One call: load `library` if it is a path, then `Library.predict(pigments, amounts, grounds)`."""
+    lib = library if isinstance(library, Library) else load_library(library)
+    return lib.predict(pigments, amounts, grounds)
+
+
+def prediction_csv(queries: Queries, pred: Prediction) -> str:
+    """The CSV text `diffwash predict` writes: the query columns, `r,g,b` (8-bit sRGB), `L*,a*,b*`, the bands."""
+    buf = _stdio.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    bands = list(pred.bands) if pred.bands != spectral.RGB else []
+    w.writerow(["pigment", "amount", "ground", "r", "g", "b", "L*", "a*", "b*", *bands])
+    rgb = pred.srgb8
+    for i in range(len(queries)):
+        row = ["+".join(queries.pigments[i]), "+".join(f"{a:g}" for a in queries.amounts[i]), queries.ground[i]]
+        row += [f"{v:.4f}" for v in rgb[i]] + [f"{v:.4f}" for v in pred.lab[i]]
+        row += [f"{v:.6f}" for v in pred.reflectance[i]] if bands else []
+        w.writerow(row)
+    return buf.getvalue()
+
+
+def write_prediction(path: str | os.PathLike, queries: Queries, pred: Prediction) -> None:
+    """Write `prediction_csv` to `path` atomically."""
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(prediction_csv(queries, pred), encoding="utf-8")
+

@@ -1,0 +1,344 @@
+r"""Tables of measured paint, spectral or RGB, single pigments or mixtures.
+
+A measurement table is a CSV file whose header starts `pigment,amount,ground`
+and goes on with either
+
+- band columns named by their wavelength in nm (`380,390,...,780`): reflectance
+  on that grid (0..1; values a little above 1, from fluorescent brighteners,
+  are data), or
+- `r,g,b`: display sRGB, 8-bit (0-255) or 0-1 floats (the whole file on one
+  scale, 0-1 when no value exceeds 1). Values at the ends of the range are
+  clipped by the gamut: bounds, not measurements.
+
+```
+pigment,amount,ground,380,390,...
+paper,0,paper,0.83,0.81,...
+P1,0.01,paper,0.12,0.10,...
+P1+P3,0.01+0.02,paper,0.05,0.04,...
+```
+
+- `pigment`: a pigment's name, or several joined by `+` for a mixture brushed
+  as one layer; a row `NAME,0,NAME` gives the colour of the ground `NAME`
+  (averaged if repeated), e.g. `paper,0,paper` or `black,0,black`.
+- `amount`: how much of each pigment (>= 0, any unit: mL on the sample's area,
+  coats), as many `+`-joined numbers as there are pigments.
+- `ground`: what the paint lies on, a ground that some row measures.
+
+Other columns (neither a number nor `r`, `g`, `b`) are ignored. A *query* table
+(`read_queries`) has just the first three columns (any others are ignored).
+
+The single-pigment RGB tables of `diffwash.fit.read_table` are the special case
+`r,g,b` with grounds `paper` and `black` (that reader fits them pigment by pigment).
+
+Every error names the file, the line and the column in one line.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import colorimetry, spectral
+from ._errors import DiffwashError
+
+__all__ = ["Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture"]
+
+#: Reflectance above this is taken for a table in percent, not a brightener's glow.
+MAX_REFLECTANCE = 2.0
+
+
+def _fail(msg: str, path: Any, line: int | None = None, column: str | None = None) -> DiffwashError:
+    where = None if line is None else (f"line {line}" + (f": {column}" if column else ""))
+    if line is None and column is not None:
+        where = column
+    return DiffwashError(msg, file=path, field=where)
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """Measured reflectance of paint layers, one row per sample.
+
+    **Fields:**
+
+    - `pigments`: the pigments of each row, a tuple of names (one for a single
+      paint, several for a mixture; repeats kept as written), length N.
+    - `amounts`: the amount of each of them, tuples parallel to `pigments`.
+    - `ground`: the ground's name on each row, shape (N,).
+    - `values`: measured reflectance per band (linear sRGB for an RGB table),
+      shape (N, B).
+    - `lo`, `hi`: values clipped at the bottom / top of the range (RGB tables;
+      all False for spectra), shape (N, B).
+    - `grounds`: each ground's reflectance, name -> shape (B,).
+    - `wavelengths`: the band grid in nm, or None for an RGB table.
+    - `path`, `lines`: the file and each row's line in it.
+    """
+
+    pigments: tuple[tuple[str, ...], ...]
+    amounts: tuple[tuple[float, ...], ...]
+    ground: np.ndarray
+    values: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    grounds: dict[str, np.ndarray]
+    wavelengths: tuple[float, ...] | None = None
+    path: str | None = None
+    lines: np.ndarray | None = field(default=None, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.pigments)
+
+    @property
+    def spectral(self) -> bool:
+        return self.wavelengths is not None
+
+    @property
+    def names(self) -> list[str]:
+        """The pigments in the order they first appear."""
+        return list(dict.fromkeys(n for row in self.pigments for n in row))
+
+    @property
+    def is_mixture(self) -> np.ndarray:
+        """Rows holding more than one distinct pigment, shape (N,)."""
+        return np.array([len(set(p)) > 1 for p in self.pigments], bool)
+
+    def observation(self, **kwargs: Any) -> spectral.Observation:
+        """The `diffwash.spectral.Observation` of this table's bands (keywords: illuminant, observer, method)."""
+        return spectral.observation(self.wavelengths, **kwargs)
+
+    def select(self, mask: Any) -> "Measurements":
+        """The rows where `mask` is True (grounds kept)."""
+        m = np.asarray(mask, bool)
+        ix = np.flatnonzero(m)
+        return replace(self, pigments=tuple(self.pigments[i] for i in ix), amounts=tuple(self.amounts[i] for i in ix),
+                       ground=self.ground[m], values=self.values[m], lo=self.lo[m], hi=self.hi[m],
+                       lines=None if self.lines is None else self.lines[m])  # fmt: skip
+
+    def _line(self, i: int) -> int:
+        return int(self.lines[i]) if self.lines is not None else i + 2
+
+
+@dataclass(frozen=True)
+class Queries:
+    """Rows to predict: pigments, amounts and ground per row (as `Measurements`, without values)."""
+
+    pigments: tuple[tuple[str, ...], ...]
+    amounts: tuple[tuple[float, ...], ...]
+    ground: np.ndarray
+    path: str | None = None
+    lines: np.ndarray | None = field(default=None, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.pigments)
+
+
+def parse_mixture(pigment: str, amount: str, *, path: Any = None, line: int | None = None) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    """Split `P1+P3` and `0.01+0.02` into names and amounts, checking both.
+
+    **Returns:** `(names, amounts)`. Bad input (counts differ, an empty name, an
+    amount that is not a finite number >= 0) raises a `DiffwashError`.
+    """
+    names = tuple(n.strip() for n in pigment.split("+"))
+    if any(not n for n in names):
+        raise _fail(f"empty pigment name in {pigment.strip()!r}", path, line, "pigment")
+    texts = [t.strip() for t in amount.split("+")]
+    if len(texts) != len(names):
+        raise _fail(f"{len(names)} pigment{'s' if len(names) > 1 else ''} ({pigment.strip()}) but {len(texts)} "
+                    f"amount{'s' if len(texts) > 1 else ''} ({amount.strip()})", path, line, "amount")  # fmt: skip
+    amounts = []
+    for t in texts:
+        v = _number(t, path, line, "amount")
+        if v < 0:
+            raise _fail(f"must be >= 0, got {t}", path, line, "amount")
+        amounts.append(v)
+    return names, tuple(amounts)
+
+
+def _number(text: str, path: Any, line: int, column: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise _fail(f"not a number: {text!r}", path, line, column) from None
+    if not math.isfinite(v):
+        raise _fail(f"must be a finite number, got {text!r}", path, line, column)
+    return v
+
+
+def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    if not path.is_file():
+        raise _fail("no such file", path)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            reader = csv.reader(f)
+            header = next(reader, None)
+            body = [(reader.line_num, row) for row in reader]
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise _fail(f"cannot read as CSV: {e}", path) from None
+    if header is None:
+        raise _fail("is empty (expected a header line starting pigment,amount,ground)", path)
+    body = [(n, row) for n, row in body if row and any(c.strip() for c in row)]
+    for n, row in body:
+        if len(row) != len(header):
+            raise _fail(f"has {len(row)} values, the header {len(header)}", path, n)
+    return header, body
+
+
+def _key_columns(header: list[str], path: Path) -> dict[str, int]:
+    names = [h.strip().lower() for h in header]
+    missing = [c for c in ("pigment", "amount", "ground") if c not in names]
+    if missing:
+        raise _fail(f"missing column{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))} (the header "
+                    f"starts pigment,amount,ground; found {','.join(h.strip() for h in header)})", path)  # fmt: skip
+    return {c: names.index(c) for c in ("pigment", "amount", "ground")}
+
+
+def _band_columns(header: list[str], path: Path) -> tuple[list[int], tuple[float, ...] | None]:
+    """Indices of the value columns and the grid (None for r, g, b)."""
+    waves = []
+    for j, h in enumerate(header):
+        try:
+            w = float(h.strip())
+        except ValueError:
+            continue
+        waves.append((j, w))
+    names = [h.strip().lower() for h in header]
+    if waves:
+        if any(c in names for c in ("r", "g", "b")):
+            raise _fail("has both wavelength columns and r, g, b: which are the measurements?", path)
+        grid = spectral.check_grid([w for _, w in waves], file=path, field="header")
+        return [j for j, _ in waves], grid
+    missing = [c for c in ("r", "g", "b") if c not in names]
+    if missing:
+        raise _fail("needs band columns named by wavelength in nm (380,390,...) or r,g,b after "
+                    f"pigment,amount,ground (missing {', '.join(missing)})", path)  # fmt: skip
+    return [names.index(c) for c in ("r", "g", "b")], None
+
+
+def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measurements:
+    """Read and validate a measurement table (format in the module docstring).
+
+    **Arguments:**
+
+    - `path`: the CSV file.
+    - `linear`: for an RGB table, the r, g, b columns hold linear reflectance
+      rather than display sRGB.
+
+    **Returns:**
+
+    The `Measurements`, values as linear reflectance. Bad input raises a
+    `DiffwashError` naming the file, the line and the column.
+    """
+    path = Path(path)
+    header, body = _read_csv(path)
+    col = _key_columns(header, path)
+    vcols, grid = _band_columns(header, path)
+    pigs, amts, gnds, vals, lines = [], [], [], [], []
+    for n, row in body:
+        names, amounts = parse_mixture(row[col["pigment"]], row[col["amount"]], path=path, line=n)
+        ground = row[col["ground"]].strip().lower()
+        if not ground:
+            raise _fail("empty ground", path, n, "ground")
+        v = []
+        for j in vcols:
+            x = _number(row[j].strip(), path, n, header[j].strip())
+            if x < 0:
+                raise _fail(f"a reflectance must be >= 0, got {row[j].strip()}", path, n, header[j].strip())
+            v.append(x)
+        pigs.append(names)
+        amts.append(amounts)
+        gnds.append(ground)
+        vals.append(v)
+        lines.append(n)
+    if not pigs:
+        raise _fail("has no rows of measurements", path)
+    vals = np.asarray(vals, np.float64)
+    lines = np.asarray(lines)
+    if grid is None:
+        vals, lo, hi = _rgb_values(vals, linear, path, lines)
+    else:
+        big = vals > MAX_REFLECTANCE
+        if np.any(big):
+            i, j = np.argwhere(big)[0]
+            raise _fail(f"reflectance {vals[i, j]:g} is far above 1 (is the table in percent? reflectance is 0..1)",
+                        path, int(lines[i]), spectral.RGB[0] if grid is None else _wl(grid[j]))  # fmt: skip
+        lo = hi = np.zeros(vals.shape, bool)
+    return _split_grounds(pigs, amts, np.asarray(gnds), vals, lo, hi, grid, path, lines)
+
+
+def _wl(w: float) -> str:
+    return str(int(w)) if float(w).is_integer() else repr(w)
+
+
+def _rgb_values(vals: np.ndarray, linear: bool, path: Path, lines: np.ndarray) -> tuple[np.ndarray, ...]:
+    top = 255.0 if np.any(vals > 1) else 1.0
+    if np.any(vals > 255):
+        i, j = np.argwhere(vals > 255)[0]
+        raise _fail(f"colour values must be 0-255 (or 0-1), got {vals[i, j]:g}", path, int(lines[i]), "rgb"[j])
+    unit = vals / top
+    lo, hi = unit <= 0, unit >= 1
+    lin = unit if linear else np.asarray(colorimetry.srgb_decode(unit), np.float64)
+    return lin, lo, hi
+
+
+def _split_grounds(pigs, amts, gnds, vals, lo, hi, grid, path, lines) -> Measurements:
+    is_ground = np.array([len(p) == 1 and p[0].lower() == g for p, g in zip(pigs, gnds)])
+    grounds = {}
+    for g in dict.fromkeys(gnds[is_ground].tolist()):
+        rows = np.flatnonzero(is_ground & (gnds == g))
+        nonzero = [i for i in rows if amts[i][0] != 0]
+        if nonzero:
+            raise _fail(f"a {g!r} row gives the bare ground and must have amount 0", path, int(lines[nonzero[0]]),
+                        "amount")  # fmt: skip
+        clipped = np.any(lo[rows] | hi[rows], axis=1)
+        if np.any(clipped):
+            raise _fail(f"the {g} is clipped (a value at the end of the range): its colour is unknown", path,
+                        int(lines[rows[np.argmax(clipped)]]))  # fmt: skip
+        grounds[g] = vals[rows].mean(axis=0)
+    ground_names = {g.lower() for g in grounds}
+    keep = ~is_ground
+    for i in np.flatnonzero(keep):
+        if gnds[i] not in grounds:
+            raise _fail(f"no row measures the ground {gnds[i]!r} (add a row '{gnds[i]},0,{gnds[i]},...')", path,
+                        int(lines[i]), "ground")  # fmt: skip
+        bad = [n for n in pigs[i] if n.lower() in ground_names]
+        if bad:
+            raise _fail(f"{bad[0]!r} names a ground, not a pigment (a ground row is '{bad[0]},0,{bad[0]}')", path,
+                        int(lines[i]), "pigment")  # fmt: skip
+    if not np.any(keep):
+        raise _fail("has only ground rows: no pigment to fit", path)
+    ix = np.flatnonzero(keep)
+    return Measurements(
+        pigments=tuple(pigs[i] for i in ix), amounts=tuple(amts[i] for i in ix), ground=gnds[keep],
+        values=vals[keep], lo=lo[keep], hi=hi[keep], grounds=grounds, wavelengths=grid,
+        path=os.fspath(path), lines=lines[keep],
+    )  # fmt: skip
+
+
+def read_queries(path: str | os.PathLike) -> Queries:
+    """Read rows to predict: `pigment,amount,ground` (other columns ignored).
+
+    Pigment and ground names are checked against a library by its `predict`;
+    here: the columns, `+`-joined counts and amounts.
+    """
+    path = Path(path)
+    header, body = _read_csv(path)
+    col = _key_columns(header, path)
+    pigs, amts, gnds, lines = [], [], [], []
+    for n, row in body:
+        names, amounts = parse_mixture(row[col["pigment"]], row[col["amount"]], path=path, line=n)
+        ground = row[col["ground"]].strip().lower()
+        if not ground:
+            raise _fail("empty ground", path, n, "ground")
+        pigs.append(names)
+        amts.append(amounts)
+        gnds.append(ground)
+        lines.append(n)
+    if not pigs:
+        raise _fail("has no rows to predict", path)
+    return Queries(pigments=tuple(pigs), amounts=tuple(amts), ground=np.asarray(gnds), path=os.fspath(path),
+                   lines=np.asarray(lines))  # fmt: skip

@@ -1,0 +1,204 @@
+r"""Pigment mixtures in one layer, and each pigment's law from an amount of paint to a layer.
+
+Kubelka-Munk sees a layer only through its optical depths $Kx$ and $Sx$ per
+band (`diffwash.km.layer(K, S, x)` depends on `K x` and `S x` alone). A layer
+brushed from amounts $a_1..a_n$ of $n$ paints, in all $A = \sum_i a_i$, has
+
+$$ Kx = \sum_i c_i\, K_i\, t_i(A), \qquad Sx = \sum_i c_i\, S_i\, t_i(A), \qquad
+   c_i = \frac{w_i a_i}{\sum_j w_j a_j}, $$
+
+- $K_i$, $S_i$: pigment $i$'s absorption and scattering per unit thickness, per
+  band (the last axis: wavelengths, or the three sRGB channels);
+- $t_i(A)$: pigment $i$'s *amount law*, the thickness of a layer of amount $A$
+  of that paint alone (`AmountLaw`: $t = (A / a_0)^{\gamma_i}$);
+- $c_i$: the concentrations. With all mixing weights $w_i = 1$ they are
+  Duncan's volume fractions (Duncan 1940: the mixture's K and S are the
+  concentration-weighted sums of its pigments'); a weight $w_i \ne 1$ says how
+  much more (or less) pigment $i$ counts in a mixture than its amount alone
+  suggests (its *tinting strength* in a mix).
+
+The law is applied to the layer's total amount: a paint mixed with itself is
+itself at the summed amount, whatever the weights (the measured self-mixtures
+of the NTU data are exactly that). A layer with nothing in it is the bare
+ground, with finite gradients.
+
+Everything here is a pure function of arrays (pigments on the second-to-last
+axis, bands on the last), so a renderer, a LUT baker or a fit can call it
+under `jax.jit`, `jax.vmap` and `jax.grad`. Which terms the NTU measurements
+support (and which they do not): docs/mixing.md.
+
+**References:**
+
+- D. R. Duncan, "The colour of pigment mixtures", Proc. Phys. Soc. 52 (1940).
+- P. Kubelka and F. Munk (1931); C. J. Curtis et al., "Computer-Generated
+  Watercolor", SIGGRAPH 1997.
+- J. L. Saunderson, "Calculation of the color of pigmented plastics", JOSA 32 (1942).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, ArrayLike, Float
+
+from . import km
+
+__all__ = [
+    "AmountLaw",
+    "Palette",
+    "concentrations",
+    "optical_depths",
+    "reflectance",
+    "saunderson_in",
+    "saunderson_out",
+    "REFERENCE_AMOUNT",
+]
+
+#: Amount at which the default `AmountLaw` gives thickness 1 (mL on the NTU samples' area):
+#: K and S are "per layer of this much paint", and the exponent barely moves them.
+REFERENCE_AMOUNT = 0.05
+
+
+def _float(x: ArrayLike) -> Array:
+    return jnp.asarray(x, jnp.result_type(x, float))
+
+
+class AmountLaw(eqx.Module):
+    r"""Amount of paint to layer thickness: $t(a) = (a / a_0)^{\gamma}$, one exponent per pigment.
+
+    A pytree whose leaf is `gamma` (shape `(P,)` for a palette, `()` for one
+    pigment); `reference` ($a_0$, the amount of thickness 1) is static. `gamma =
+    1` is thickness proportional to amount; `gamma < 1` a wash that thickens
+    less than the paint put on it (absorbent paper, pigment settling into the
+    fibres). `t(0) = 0` with a finite (zero) gradient.
+
+    **Fields:**
+
+    - `gamma`: the exponents, `> 0`.
+    - `reference`: the amount of thickness 1 (default `REFERENCE_AMOUNT`).
+    """
+
+    gamma: Float[Array, "*p"]
+    reference: float = eqx.field(static=True, default=REFERENCE_AMOUNT)
+
+    def __call__(self, amount: Float[ArrayLike, "*#p"]) -> Float[Array, "*p"]:
+        """The thickness at `amount` (`>= 0`; broadcast against `gamma`)."""
+        a = _float(amount)
+        g = jnp.asarray(self.gamma, a.dtype)
+        ok = a > 0
+        x = jnp.where(ok, a, 1) / self.reference
+        return jnp.where(ok, jnp.exp(g * jnp.log(x)), 0)
+
+    def to_dict(self) -> dict[str, Any]:
+        g = np.asarray(self.gamma, np.float64)
+        return {"kind": "power", "reference": self.reference, "gamma": g.tolist() if g.ndim else float(g)}
+
+
+def concentrations(amounts: Float[ArrayLike, "*n p"], weights: Float[ArrayLike, "*#n p"] | None = None) -> Float[Array, "*n p"]:
+    r"""Concentrations $c_i = w_i a_i / \sum_j w_j a_j$ of the pigments of each layer.
+
+    **Arguments:**
+
+    - `amounts`: amount of each pigment, `>= 0`, pigments on the last axis.
+    - `weights`: mixing weights `> 0` (broadcast against `amounts`); None for
+      Duncan's volume fractions (all 1).
+
+    **Returns:** the concentrations, summing to 1 over the last axis, or all 0
+    (with zero gradient) where a layer holds nothing.
+    """
+    a = _float(amounts)
+    wa = a if weights is None else a * jnp.asarray(weights, a.dtype)
+    total = jnp.sum(wa, axis=-1, keepdims=True)
+    ok = total > 0
+    return jnp.where(ok, wa / jnp.where(ok, total, 1), 0)
+
+
+def optical_depths(
+    K: Float[ArrayLike, "*#n p b"],
+    S: Float[ArrayLike, "*#n p b"],
+    amounts: Float[ArrayLike, "*#n p"],
+    law: AmountLaw,
+    weights: Float[ArrayLike, "*#n p"] | None = None,
+) -> tuple[Float[Array, "*n b"], Float[Array, "*n b"]]:
+    r"""$Kx$ and $Sx$ of a layer of mixed pigments (the module docstring's law).
+
+    **Arguments:**
+
+    - `K`, `S`: each pigment's coefficients per unit thickness, shape `(..., P, B)`.
+    - `amounts`: each pigment's amount in the layer, shape `(..., P)` (0 for absent ones).
+    - `law`: the pigments' `AmountLaw` (its `gamma` of shape `(P,)`).
+    - `weights`: mixing weights, shape `(P,)`; None for Duncan's.
+
+    **Returns:** `(Kx, Sx)`, shape `(..., B)`: `km.layer(Kx, Sx, 1)` is the layer.
+    """
+    a = _float(amounts)
+    total = jnp.sum(a, axis=-1, keepdims=True)
+    u = concentrations(a, weights) * law(total)  # (..., P): each pigment's share of the layer
+    K, S = jnp.asarray(K, a.dtype), jnp.asarray(S, a.dtype)
+    return jnp.einsum("...p,...pb->...b", u, K), jnp.einsum("...p,...pb->...b", u, S)
+
+
+def saunderson_in(R: Float[ArrayLike, "*b"], k2: float) -> Float[Array, "*b"]:
+    r"""Measured reflectance to the reflectance inside the film (Saunderson, $k_1 = 0$): $R/(1 - k_2 + k_2 R)$."""
+    R = _float(R)
+    return R / (1 - k2 + k2 * R)
+
+
+def saunderson_out(R: Float[ArrayLike, "*b"], k2: float) -> Float[Array, "*b"]:
+    r"""Reflectance inside the film to measured reflectance (Saunderson, $k_1 = 0$): $(1 - k_2) R / (1 - k_2 R)$."""
+    R = _float(R)
+    return (1 - k2) * R / (1 - k2 * R)
+
+
+def reflectance(
+    K: Float[ArrayLike, "*#n p b"],
+    S: Float[ArrayLike, "*#n p b"],
+    amounts: Float[ArrayLike, "*#n p"],
+    ground: Float[ArrayLike, "*#n b"],
+    law: AmountLaw,
+    weights: Float[ArrayLike, "*#n p"] | None = None,
+    k2: float | Array = 0.0,
+) -> Float[Array, "*n b"]:
+    r"""Reflectance of a mixed layer over an opaque ground, per band.
+
+    $(R, T) = \mathrm{layer}(Kx, Sx, 1)$ from `optical_depths`, then
+    `km.over(R, T, ground)`; with `k2 > 0`, Saunderson's surface correction
+    around it (the ground taken inside the film, the result back out).
+
+    **Returns:** the measured reflectance, shape `(..., B)`.
+    """
+    Kx, Sx = optical_depths(K, S, amounts, law, weights)
+    g = saunderson_in(_float(ground), k2)  # k2 = 0: the identity (k2 may be traced)
+    R, T = km.layer(Kx, Sx, 1.0)
+    return saunderson_out(km.over(R, T, g), k2)
+
+
+class Palette(eqx.Module):
+    """Pigments that can be mixed: coefficients per band, amount laws and mixing weights.
+
+    A pytree whose leaves are the arrays (the names and the grid are static), so
+    it passes through `jax.jit` and a fit can differentiate it.
+
+    **Fields:**
+
+    - `K`, `S`: per unit thickness, shape (P, B), on the bands of `wavelengths`
+      (nm) or, with `wavelengths` None, the three linear sRGB channels.
+    - `law`: the `AmountLaw` (one exponent per pigment).
+    - `weights`: mixing weights, shape (P,) (all 1: Duncan).
+    - `names`: the pigments' names.
+    - `wavelengths`: the band grid, or None for sRGB channels.
+    """
+
+    K: Float[Array, "p b"]
+    S: Float[Array, "p b"]
+    law: AmountLaw
+    weights: Float[Array, "p"]
+    names: tuple[str, ...] = eqx.field(static=True)
+    wavelengths: tuple[float, ...] | None = eqx.field(static=True, default=None)
+
+    def reflectance(self, amounts: Float[ArrayLike, "*n p"], ground: Float[ArrayLike, "*#n b"], k2: float = 0.0) -> Float[Array, "*n b"]:
+        """Reflectance of layers with `amounts` of each pigment (shape `(..., P)`) over `ground`."""
+        return reflectance(self.K, self.S, amounts, ground, self.law, self.weights, k2)

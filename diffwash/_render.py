@@ -50,6 +50,7 @@ from . import _watercolour, shading
 from ._antialias import Silhouettes, silhouettes
 from ._antialias import antialias as antialias_image
 from ._cache import LRU
+from ._errors import DiffwashError
 from ._camera import Camera
 from ._interpolate import barycentrics, interpolate
 from ._rasterize import clip_positions, covered, is_concrete, rasterize as rasterize_op
@@ -521,6 +522,25 @@ def render_views(
 
 #: Images of more pixels than this render in horizontal strips, so that memory stays bounded.
 TILE_PIXELS = 1 << 22
+#: The most pixels `render_strips` draws with a watercolour look, which blurs across the whole image and so
+#: renders it in one piece: 1920x1080 fits; about 2 GB of memory at this size (3 GB at 2048x2048).
+LOOK_MAX_PIXELS = 1 << 21
+
+
+def _check_look_size(scene: Scene) -> None:
+    """Refuse a look image too big to draw in one piece, naming a size of the same shape that fits."""
+    n = scene.width * scene.height
+    if n <= LOOK_MAX_PIXELS:
+        return
+    k = (LOOK_MAX_PIXELS / n) ** 0.5
+    fits = f"{max(1, int(scene.width * k))}x{max(1, int(scene.height * k))}"
+    raise DiffwashError(
+        f"the watercolour look draws the whole image at once and {scene.width}x{scene.height} = {n:,} pixels is over "
+        f"its limit of {LOOK_MAX_PIXELS:,} (about 2 GB of memory): render at {fits}, or without the scene's "
+        f"\"watercolour\" object (then in strips, at any size)",
+        file=getattr(scene, "path", None),
+        field="image",
+    )
 
 
 class _Window(eqx.Module):
@@ -573,6 +593,7 @@ def render_strips(
     strip (the look's edge darkening blurs across the whole image).
     """
     if getattr(scene, "watercolour", None) is not None:
+        _check_look_size(scene)
         yield 0, _render(scene, params, None, antialias, alpha)
         return
     rows = max(1, TILE_PIXELS // scene.width) if rows is None else int(rows)

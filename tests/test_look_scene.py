@@ -136,6 +136,15 @@ def test_the_cli_renders_the_look(run_cli, tmp_path):
     assert (tmp_path / "out.png").is_file()
 
 
+def test_a_look_too_big_to_draw_in_one_piece_is_refused_with_a_size_that_fits(run_cli, tmp_path):
+    """The look blurs across the whole image, so it cannot go in strips: past its limit the render is refused."""
+    path = _write(tmp_path, _scene_dict({}, size=32))
+    r = run_cli("render", path, "--size", "4000x2000", "-o", tmp_path / "out.png")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "4000x2000 = 8,000,000 pixels is over its limit of 2,097,152" in r.stderr and "render at 2048x1024" in r.stderr
+    assert not (tmp_path / "out.png").exists()
+
+
 # --- gradients of the renderer in every continuous look parameter ----------------------------------------
 
 LEAVES = [*wl.DEFAULT_LOOK]

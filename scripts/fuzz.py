@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import csv
 import io
 import json
 import math
@@ -236,6 +237,36 @@ def scene_docs(draw: Any) -> dict:
     for key in draw(st.sets(st.sampled_from(["k_wash", "k_specular", "shininess", "k_unlit", "gain", "bias",
                                              "wash_reduction", "paper", "shading", "backfaces"]))):  # fmt: skip
         doc[key] = draw(st.floats(0.01, 0.99)) if key != "paper" else _rgb(draw)
+    if draw(st.booleans()):
+        doc["watercolour"] = _watercolour_doc(draw)
+    return doc
+
+
+#: Values a watercolour key may be given: sensible, out of range, the wrong type, a missing file.
+_LOOK_VALUES = st.one_of(st.floats(-1, 3), st.integers(-2, 400), st.sampled_from(["max", "min", "x", "", None, True]),
+                         st.sampled_from(["missing.png", "tetra.ply", "Cadmium Yellow", "rose.json"]),
+                         st.lists(st.floats(-2, 2), max_size=4))  # fmt: skip
+
+
+def _watercolour_doc(draw: Any) -> Any:
+    """A scene's "watercolour" object: effects on ({}), off (false), or with drawn keys (known and unknown)."""
+    if draw(st.integers(0, 9)) == 0:
+        return draw(st.sampled_from([None, [], "on", 1, False, True]))
+    effects = ["paper", "edges", "unevenness", "strokes", "shadow", "hatching", "mix", "brush"]
+    keys = {"paper": ["image", "seed", "relief", "granulation", "density", "shading"],
+            "edges": ["darkening", "width"], "unevenness": ["turbulence", "dispersion"],
+            "strokes": ["amplitude", "direction", "length", "seed"], "shadow": ["strength", "bias"],
+            "hatching": ["amount", "scale"], "mix": ["wash", "unlit", "map"], "brush": ["size"]}
+    doc = {}
+    for effect in draw(st.sets(st.sampled_from(effects), max_size=4)):
+        if draw(st.integers(0, 3)) == 0:
+            doc[effect] = draw(st.sampled_from([False, True, None, 0]))
+            continue
+        obj = {k: draw(_LOOK_VALUES) for k in draw(st.sets(st.sampled_from(keys[effect] + ["other"]), max_size=3))}
+        if effect == "mix" and draw(st.booleans()):
+            obj["wash"] = {"pigment": draw(st.sampled_from(_PIGMENT_REFS))}
+            obj["map"] = draw(st.sampled_from([{"axis": [0, 1, 0], "softness": 0.5}, {"axis": [0, 0, 0]}, "missing.npy"]))
+        doc[effect] = obj
     return doc
 
 
@@ -293,6 +324,27 @@ EXTRA_COLUMNS = ("note", "R", " amount ")
 
 
 @st.composite
+def mixture_table_files(draw: Any) -> bytes:
+    """Tables in the spectral/mixture format: band columns (or r, g, b), mixture rows, amounts per paint."""
+    bands = draw(st.sampled_from([[str(w) for w in range(380, 790, 10)], [str(w) for w in range(400, 710, 50)],
+                                  ["380", "380", "390"], ["700", "400"], ["r", "g", "b"], ["nm", "x"]]))  # fmt: skip
+    rows = [["pigment", "amount", "ground", *bands]]
+    if draw(st.booleans()):
+        rows.append(["paper", "0", "paper", *["0.85"] * len(bands)])
+    value = st.one_of(_number_text(0, 1.05), st.sampled_from(["nan", "-0.1", "", "1e400", "inf"]))
+    for _ in range(draw(st.integers(0, 6))):
+        n = draw(st.integers(1, 3))
+        names = [draw(st.sampled_from(["P1", "P2", "P13", "paper", "", "p1"])) for _ in range(n)]
+        amounts = [draw(st.sampled_from(["0.01", "0.02", "0", "-0.01", "nan", "x", ""])) for _ in range(draw(st.integers(1, 3)))]
+        row = ["+".join(names), "+".join(amounts), draw(st.sampled_from(["paper", "black", ""]))]
+        row += [draw(value) for _ in range(len(bands) - draw(st.integers(0, 1)))]
+        rows.append(row)
+    out = io.StringIO()
+    csv.writer(out, lineterminator="\n").writerows(rows)
+    return draw(mutated_bytes(out.getvalue().encode()))
+
+
+@st.composite
 def table_files(draw: Any) -> bytes:
     columns = list(draw(st.permutations(TABLE_COLUMNS)))
     if draw(st.integers(0, 9)) == 0:
@@ -309,8 +361,6 @@ def table_files(draw: Any) -> bytes:
         cut = draw(st.integers(0, 12))
         rows.append(row[:cut] if cut < len(row) else row)
     out = io.StringIO()
-    import csv
-
     csv.writer(out, lineterminator=draw(st.sampled_from(["\n", "\r\n", "\r"]))).writerows(rows)
     data = (b"\xef\xbb\xbf" if draw(st.booleans()) else b"") + out.getvalue().encode()
     return draw(mutated_bytes(data))
@@ -444,6 +494,9 @@ READERS: dict[str, Reader] = {
         Reader("library", json_file(library_docs), lambda p, o: diffwash.pigments.library(p), ".json"),
         Reader("table", table_files(), lambda p, linear: diffwash.fit.read_table(p, linear=linear), ".csv",
                st.booleans()),  # fmt: skip
+        Reader("measurements", mixture_table_files(),
+               lambda p, queries: (diffwash.measurements.read_queries if queries else diffwash.measurements.read_measurements)(p),
+               ".csv", st.booleans()),  # fmt: skip
         Reader("image", image_files(), lambda p, loose: read_image(p, colour=not loose, opaque=not loose), "",
                st.booleans()),  # fmt: skip
         Reader("mesh", mesh_files(), lambda p, o: diffwash.load_mesh(p)),

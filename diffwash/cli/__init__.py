@@ -16,13 +16,14 @@ import importlib
 import os
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 import jax
 
 from .. import DiffwashError, __version__
 from .. import io as dio
 
-__all__ = ["main", "COMMANDS", "add_image_limit"]
+__all__ = ["main", "COMMANDS", "add_image_limit", "check_output"]
 
 #: Subcommand modules, in the order `diffwash --help` lists them.
 COMMANDS = (
@@ -53,6 +54,16 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str):  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def check_output(path: str, suffix: str, flag: str) -> Path:
+    """An output path with the `suffix` its command writes, in a folder that exists; a one-line error otherwise."""
+    out = Path(path)
+    if out.suffix.lower() != suffix:
+        raise DiffwashError(f"must be a {suffix} file, got {out.name!r}", field=flag)
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise DiffwashError("output folder does not exist", file=out.parent)
+    return out
 
 
 def add_image_limit(p: argparse.ArgumentParser) -> None:

@@ -9,14 +9,13 @@ status 1, unless --allow-unconverged.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
 from .. import DiffwashError, FailureError, load_scene, referenced_files
 from .. import io as dio
 from ..fit import FITTABLE, IMAGE_LOSSES, SOLVERS, fit_image, load_cameras, parse_fit_list, save_image_report
-from . import add_image_limit
+from . import add_image_limit, check_output
 
 NAME = "fit-image"
 HELP = "fit scene parameters to target images"
@@ -46,14 +45,8 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     t0 = time.perf_counter()
-    out = Path(args.output)
-    if out.suffix.lower() != ".json":
-        raise DiffwashError(f"must be a .json file, got {out.name!r}", field="--output")
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise DiffwashError("output folder does not exist", file=out.parent)
-    report = Path(args.report) if args.report else None
-    if report is not None and report.suffix.lower() != ".png":
-        raise DiffwashError(f"must be a .png file, got {report.name!r}", field="--report")
+    out = check_output(args.output, ".json", "--output")
+    report = check_output(args.report, ".png", "--report") if args.report else None
     if args.max_steps < 1:
         raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
     scene_files = [f for s in args.scene for f in (s, *referenced_files(s))]

@@ -25,7 +25,7 @@ from ..fit import (
     save_swatch_report,
     save_table_report,
 )
-from . import _library_fit, add_image_limit
+from . import _library_fit, add_image_limit, check_output
 
 NAME = "fit-swatch"
 HELP = "fit pigment K and S to a swatch-card photo or a table of measured colours"
@@ -68,18 +68,9 @@ def _srgb8(linear) -> str:
     return "(" + ", ".join(f"{int(round(255 * c)):3d}" for c in d) + ")"
 
 
-def _check_output(path: str, suffix: str, flag: str) -> Path:
-    out = Path(path)
-    if out.suffix.lower() != suffix:
-        raise DiffwashError(f"must be a {suffix} file, got {out.name!r}", field=flag)
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise DiffwashError("output folder does not exist", file=out.parent)
-    return out
-
-
 def run(args) -> int:
-    out = _check_output(args.output, ".json", "--output")
-    report = _check_output(args.report, ".png", "--report") if args.report else None
+    out = check_output(args.output, ".json", "--output")
+    report = check_output(args.report, ".png", "--report") if args.report else None
     if args.max_steps < 1:
         raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
     dio.refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.photos, *(args.layout or []), args.table])

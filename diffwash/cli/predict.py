@@ -9,10 +9,10 @@ diffwash.library.predict(LIBRARY, QUERIES).
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
-from .. import DiffwashError, library, measurements
+from .. import library, measurements
 from .. import io as dio
+from . import check_output
 
 NAME = "predict"
 HELP = "predict the colour of single paints and mixtures from a pigment library (fit-swatch --table)"
@@ -27,11 +27,7 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     t0 = time.perf_counter()
-    out = Path(args.output)
-    if out.suffix.lower() != ".csv":
-        raise DiffwashError(f"must be a .csv file, got {out.name!r}", field="--output")
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise DiffwashError("output folder does not exist", file=out.parent)
+    out = check_output(args.output, ".csv", "--output")
     dio.refuse_overwriting_inputs({"--output": out}, [args.library, args.table])
     lib = library.load_library(args.library)
     queries = measurements.read_queries(args.table)

@@ -9,10 +9,11 @@ retyped.
 
 from __future__ import annotations
 
-import math
 
 import moderngl
 import numpy as np
+
+from .._xp import float_literal
 
 __all__ = ["float_literal", "vec_literal", "FULLSCREEN_VERTEX", "HEADERS", "header"]
 
@@ -29,20 +30,6 @@ def header(target: str) -> str:
     if target not in HEADERS:
         raise ValueError(f"target must be one of {', '.join(HEADERS)}, got {target!r}")
     return HEADERS[target]
-
-
-def float_literal(x: float) -> str:
-    """A GLSL float literal for `x`, exact to float64's shortest repr (`1.0`, `0.5`, `1e-06`)."""
-    x = float(x)
-    if not math.isfinite(x):
-        raise ValueError(f"no GLSL literal for {x}")
-    s = repr(x)
-    if "e" in s or "E" in s:
-        mant, exp = s.lower().split("e")
-        if "." not in mant:
-            mant += ".0"
-        return f"{mant}e{int(exp)}"
-    return s if "." in s else s + ".0"
 
 
 def vec_literal(values) -> str:

@@ -67,23 +67,3 @@ def run_cli(tmp_path):
         )
 
     return run
-
-
-@pytest.fixture
-def cli(capsys, tmp_path, monkeypatch):
-    """`diffwash ARGS...` in this process, from `tmp_path`: returns (status, stdout, stderr)."""
-    from diffwash.cli import main  # here, not at the top: conftest stays light for the tests that never need it
-
-    monkeypatch.chdir(tmp_path)
-    # main() sets MPLBACKEND for its figures; undone after the test (a notebook kernel started later inherits it).
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-
-    def run(*args):
-        try:
-            status = main([str(a) for a in args])
-        except SystemExit as e:  # argparse's usage errors
-            status = e.code
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run

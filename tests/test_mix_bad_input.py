@@ -6,14 +6,31 @@ import json
 import pytest
 from conftest import ROOT
 
+from diffwash.cli import main
 
 HEAD = "pigment,amount,ground,400,500,600,700\n"
 PAPER = "paper,0,paper,0.8,0.82,0.85,0.86\n"
 GOOD = HEAD + PAPER + "P1,0.02,paper,0.2,0.1,0.5,0.6\nP2,0.02,paper,0.1,0.5,0.3,0.2\nP1+P2,0.01+0.01,paper,0.1,0.1,0.3,0.3\n"
 
 
+@pytest.fixture
+def cli(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+
+    def run(*args):
+        try:
+            status = main([str(a) for a in args])
+        except SystemExit as e:
+            status = e.code
+        _, err = capsys.readouterr()
+        return status, err
+
+    return run
+
+
 def _refused(result, *needles):
-    status, _, err = result
+    status, err = result
     assert status == 2, err
     assert err.startswith("diffwash") and err.count("\n") == 1 and "Traceback" not in err, err
     for n in needles:

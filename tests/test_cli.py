@@ -1,6 +1,7 @@
 """The `diffwash` command through its real entry point (python -m diffwash, and the console script)."""
 
 import json
+import os
 import tomllib
 
 import numpy as np
@@ -8,6 +9,7 @@ from conftest import ROOT
 from PIL import Image
 
 import diffwash
+from diffwash.cli import main
 from diffwash.swatches import swatch_colours
 
 
@@ -76,3 +78,14 @@ def test_swatches_errors(run_cli, tmp_path):
     r = run_cli("swatches", "Cadmium Red", "-o", "missing/chart.png")
     assert r.returncode == 2 and "output folder does not exist" in r.stderr
     assert not (tmp_path / "chart.png").exists()
+
+
+def test_main_leaves_the_environment_as_it_found_it(monkeypatch, capsys):
+    # main() picks matplotlib's file backend for its own figures; a caller's later subprocesses (a notebook
+    # kernel) must not inherit it, or their inline figures vanish.
+    monkeypatch.delenv("MPLBACKEND", raising=False)
+    assert main(["pigments"]) == 0
+    assert "MPLBACKEND" not in os.environ
+    monkeypatch.setenv("MPLBACKEND", "pdf")
+    assert main(["pigments"]) == 0
+    assert os.environ["MPLBACKEND"] == "pdf"

@@ -33,6 +33,8 @@ def test_notebook_is_stored_without_outputs(path):
 def test_notebook_runs(path, tmp_path, monkeypatch):
     monkeypatch.setenv("PYTHONPATH", str(ROOT))
     monkeypatch.setenv("DIFFWASH_CACHE_DIR", "off")
+    # The kernel picks matplotlib's inline backend only when MPLBACKEND is unset (Agg would hide every figure).
+    monkeypatch.delenv("MPLBACKEND", raising=False)
     nb = nbformat.read(path, as_version=4)
     client = NotebookClient(nb, timeout=BUDGET_S * 2, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}})
     start = time.perf_counter()

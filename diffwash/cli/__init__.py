@@ -92,7 +92,17 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     # The commands draw figures into files only: no GUI backend (matplotlib reads this when first imported).
+    # Set for this call only: a caller's later subprocesses (a notebook kernel, say) must not inherit it.
+    backend_before = os.environ.get("MPLBACKEND")
     os.environ.setdefault("MPLBACKEND", "Agg")
+    try:
+        return _main(argv)
+    finally:
+        if backend_before is None:
+            os.environ.pop("MPLBACKEND", None)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     try:

@@ -106,7 +106,9 @@ def cross_validate(name: str, path: Path, model: MixModel | None, folds: int) ->
 
 
 MODELS = {
-    "spectral": ("spectral Duncan, amount law per pigment", SPECTRAL, MixModel()),
+    "spectral": ("spectral Duncan, amount law per pigment, CIEDE2000 refinement (ridge 3)", SPECTRAL, MixModel()),
+    "logspectral": ("spectral Duncan, log-reflectance loss only", SPECTRAL, MixModel(loss="spectral")),
+    "ridge1": ("spectral Duncan, CIEDE2000 refinement, ridge 1", SPECTRAL, MixModel(ridge=1.0)),
     "weights": ("spectral + mixing weight per pigment", SPECTRAL, MixModel(weights=True)),
     "surface": ("spectral + Saunderson k2", SPECTRAL, MixModel(surface=True)),
     "rgb": ("RGB table as smooth spectra, Duncan", RGB, MixModel()),

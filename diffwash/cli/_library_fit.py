@@ -46,10 +46,13 @@ def run_library(args, m: measurements.Measurements, out: Path, report: Path | No
         if getattr(args, flag):
             raise DiffwashError("does not apply to a spectral or mixture table (fitted jointly: see docs/mixing.md)",
                                 field=f"--{flag}")  # fmt: skip
+    if args.refine and not m.spectral:
+        raise DiffwashError("applies to spectral tables (an RGB table is fitted in CIEDE2000 already)", field="--refine")
     if report is not None:
         raise DiffwashError("no report picture for a spectral or mixture table yet (the library holds per-row "
                             "residuals)", field="--report")  # fmt: skip
-    model = MixModel(weights=args.mixing == "weights", surface=args.surface == "saunderson")
+    model = MixModel(weights=args.mixing == "weights", surface=args.surface == "saunderson",
+                     loss="spectral" if args.refine == "none" else "de2000")
     fit = fit_mixtures(m, model=model, max_steps=args.max_steps)
     kind = f"{len(m.wavelengths)} bands" if m.spectral else "sRGB, fitted as smooth spectra"
     s = fit.summary()

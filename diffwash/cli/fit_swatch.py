@@ -52,6 +52,9 @@ def add_arguments(p) -> None:
     p.add_argument("--mixing", choices=("duncan", "weights"), default="duncan",
                    help="spectral or mixture table: Duncan's concentration-weighted sums (default), or with a fitted "
                         "mixing weight per pigment (docs/mixing.md says what each gives on pairs never seen mixed)")
+    p.add_argument("--refine", choices=("de2000", "none"),
+                   help="spectral table: after the log-reflectance fit, refine in CIEDE2000 with a ridge towards its "
+                        "spectra (de2000, the default; docs/mixing.md), or stop at the log-reflectance fit")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"),
@@ -80,7 +83,7 @@ def run(args) -> int:
         return _run_table(args, out, report)
     if not args.photos:
         raise DiffwashError("needs a PHOTO and its --layout, or --table CSV", field="PHOTO")
-    for flag in ("plain", "thickness", "surface", "linear", "batch"):
+    for flag in ("plain", "thickness", "surface", "linear", "batch", "refine"):
         if getattr(args, flag):
             raise DiffwashError("only applies to --table fits", field=f"--{flag}")
     if not args.layout:
@@ -142,6 +145,9 @@ def _run_table(args, out: Path, report: Path | None) -> int:
     if mixtures is not None:  # spectral bands or mixtures: one joint fit, one library
         return _library_fit.run_library(args, mixtures, out, report)
     t0 = time.perf_counter()
+    if args.refine:
+        raise DiffwashError("only applies to spectral or mixture tables (a single-pigment RGB table is fitted in "
+                            "CIEDE2000 already)", field="--refine")  # fmt: skip
     if args.loss == "noise":
         raise DiffwashError("a table has no pixels to estimate noise from: choose de2000, cie94, lab or srgb",
                             field="--loss")  # fmt: skip

@@ -43,6 +43,7 @@ import optimistix as optx
 from .. import colorimetry, km, mixing, spectral
 from ..library import Library
 from ..measurements import Measurements
+from . import _seen
 from ._bandlsq import BandLevenbergMarquardt
 
 __all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score", "residuals", "RGB_GRID"]
@@ -72,6 +73,10 @@ class MixModel:
     - `prior`: strength of the weak priors (ridge on the shared terms; smoothness for RGB tables).
     - `own`: each pigment's amount law applied to its own amount, `Kx = sum_i K_i t_i(a_i)`, instead of
       Duncan's concentrations at the layer's total amount (measured worse: docs/mixing.md; kept to reproduce it).
+    - `loss`: what a spectral fit minimises in the end: `"de2000"` (the log-reflectance fit, then refined on
+      CIEDE2000 residuals with a ridge of weight `ridge` towards its spectra: `diffwash.fit._seen`) or
+      `"spectral"` (log reflectance only). RGB tables are always fitted in CIEDE2000.
+    - `ridge`: the refinement's pull towards the spectral fit (CIEDE2000 units per unit log K or log S).
     """
 
     gamma: bool = True
@@ -79,10 +84,12 @@ class MixModel:
     surface: bool = False
     prior: float = 1.0
     own: bool = False
+    loss: str = "de2000"
+    ridge: float = 3.0
 
     def describe(self) -> dict[str, Any]:
         return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
-                "own": self.own}
+                "own": self.own, "loss": self.loss, "ridge": self.ridge}
 
 
 @dataclass(frozen=True)
@@ -181,20 +188,27 @@ def _spectral_problem(A, G, Y, band0, P: int, model: MixModel):
     return fn
 
 
-def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol: float):
+def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol: float, obs: spectral.Observation):
     A, G = _dense(m, names)
     P = len(names)
     dtype = jnp.zeros(()).dtype
-    band0 = jnp.asarray(_init_band(m, A, names), dtype)
+    A, G, Y = (jnp.asarray(x, dtype) for x in (A, G, m.values))
+    band0 = jnp.asarray(_init_band(m, np.asarray(A), names), dtype)
     shared0 = jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0)
-    fn = _spectral_problem(jnp.asarray(A, dtype), jnp.asarray(G, dtype), jnp.asarray(m.values, dtype), band0, P, model)
+    fn = _spectral_problem(A, G, Y, band0, P, model)
     solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
     sol = optx.least_squares(fn, solver, (band0, shared0), max_steps=max_steps, throw=False)
-    band, shared = sol.value
+    y, ok, steps = sol.value, bool(sol.result == optx.RESULTS.successful), int(sol.stats["num_steps"])
+    if model.loss == "de2000":
+        y, ok, more = _seen.refine_in_de2000(
+            lambda band, shared: _layer(jnp.exp(band[:, :P]).T, jnp.exp(band[:, P:]).T, A, G, *_shared(shared, P, model), model.own),
+            obs.lab, obs.lab(Y), y, ridge=model.ridge, shared_prior=lambda s: _shared_prior(s, P, model),
+            max_steps=max_steps, rtol=max(rtol, 1e-5))  # fmt: skip
+        steps += more
+    band, shared = y
     gam, w, k2 = _shared(shared, P, model)
     K, S = np.exp(np.asarray(band[:, :P], np.float64)).T, np.exp(np.asarray(band[:, P:], np.float64)).T
-    ok = bool(sol.result == optx.RESULTS.successful)
-    return K, S, np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2), ok, int(sol.stats["num_steps"])
+    return K, S, np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2), ok, steps
 
 
 def _rgb_basis(n: int = 10) -> np.ndarray:
@@ -324,7 +338,7 @@ def fit_mixtures(
         rtol = 1e-7 if jnp.zeros(()).dtype == jnp.float64 else (1e-4 if m.spectral else RGB_RTOL)
     if m.spectral:
         obs = m.observation(**observe)
-        K, S, gam, w, k2, ok, steps = _fit_spectral(m, names, model, max_steps, rtol)
+        K, S, gam, w, k2, ok, steps = _fit_spectral(m, names, model, max_steps, rtol, obs)
         grounds = dict(m.grounds)
     else:
         (K, S, gam, w, k2, ok, steps), grounds, obs = _fit_rgb(m, names, model, max_steps, rtol)

@@ -10,9 +10,11 @@ $$ Kx = \sum_i c_i K_i t_i(A), \quad Sx = \sum_i c_i S_i t_i(A), \quad
 then `km.layer` over the row's measured ground (with, as a model term,
 Saunderson's surface correction of internal reflectance $k_2$).
 
-- **Spectral tables** (reflectance per band): least squares on reflectance,
+- **Spectral tables** (reflectance per band): least squares on log reflectance,
   band by band coupled only by the shared terms (amount laws, weights, $k_2$),
-  solved by `BandLevenbergMarquardt` (Schur complement over the bands).
+  solved by `BandLevenbergMarquardt` (Schur complement over the bands); then
+  (`MixModel.loss = "de2000"`, the default) refined on CIEDE2000 residuals with
+  a ridge towards those spectra (`diffwash.fit._seen`).
 - **RGB tables** (8-bit sRGB): the pigments are still spectral, on a 380-780 nm,
   10 nm grid, with $\log K(\lambda)$ and $\log S(\lambda)$ smooth (a basis of
   Gaussian bumps and a second-difference penalty): generic priors only. They are

@@ -49,11 +49,11 @@ def _problem(reflect, lab_of, lab_target, band0, ridge: float, shared_prior):
     def normal_equations(y):
         band, shared = y
         B, Q = band.shape
-        R, dR = jax.vmap(lambda tb, tg: jax.jvp(reflect, (band, shared), (tb, tg)))(*_tangents(band, shared))
-        R = R[0]  # (N, B); dR: (Q + G, N, B)
+        R, reflect_jvp = jax.linearize(reflect, band, shared)  # R once; then Q + G tangents through its linearisation
+        dR = jax.vmap(reflect_jvp)(*_tangents(band, shared))  # (Q + G, N, B)
         row = lambda Rn, ln: colorimetry.delta_e_2000_residuals(ln, lab_of(Rn))  # noqa: E731
         E = jax.vmap(jax.jacfwd(row))(R, lab_target)  # (N, 3, B)
-        r, rb, rg = residuals(band, shared)
+        r, rb, rg = row(R, lab_target), ridge * (band - band0), shared_prior(shared)
         Jb = jnp.einsum("nib,qnb->nibq", E, dR[:Q]).reshape(-1, B * Q)
         Jg = jnp.einsum("nib,gnb->nig", E, dR[Q:]).reshape(Jb.shape[0], -1)
         Jp = jax.jacfwd(shared_prior)(shared)

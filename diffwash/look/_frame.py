@@ -25,7 +25,7 @@ from ._look import glsl_final_pass, glsl_surface, look_uniforms
 from ._mix import bake_mix_lut, glaze_mix
 from ._shadow import SHADOW_MAP_SIZE, glsl_depth_pass, glsl_shadow, light_view_projection, normal_offset
 
-__all__ = ["LookFrame", "MIX_LUT_SIZE", "MIX_LUT_RANGE"]
+__all__ = ["LookFrame", "MIX_LUT_SIZE", "MIX_LUT_RANGE", "geometry_sources"]
 
 #: The 3D mix LUT's size (wash, unlit, mix): docs/watercolour.md measures its error by size.
 MIX_LUT_SIZE = (64, 64, 16)
@@ -42,14 +42,14 @@ uniform mat4 view_projection;
 """
 
 
-def _geometry_program(ctx, hatching: bool, shadow: str = "vertex"):
-    """The look's geometry pass: the model's thicknesses, shadow (and hatching), mix and stroke into the G-buffer.
+def geometry_sources(target: str, hatching: bool, shadow: str = "vertex") -> tuple[str, str]:
+    """The look's geometry pass for `target`: the model's thicknesses, shadow (and hatching), mix and stroke into the G-buffer.
 
     `shadow="vertex"`: the shadow lookup runs in the vertex shader and is interpolated (as in the JAX
-    kernel's default); `"pixel"`: per fragment.
+    kernel's default); `"pixel"`: per fragment. Returns the vertex and fragment shader.
     """
-    head = _gl.header("glsl330")
-    model = functions_source("glsl330", colour="km")  # the thickness model (the colour is the look's)
+    head = _gl.header(target)
+    model = functions_source(target, colour="km")  # the thickness model (the colour is the look's)
     vert = head + f"#define LOOK_VERTEX_SHADOW {int(shadow == 'vertex')}\n" + _VERTEX_INPUTS + glsl_shadow() + """\
 layout(location = 2) in float mix_in;
 layout(location = 3) in float stroke_in;
@@ -100,6 +100,11 @@ void main() {
     gbuffer = vec4(look_surface(t, k_unlit, shadow, h0, h1), v_mix, v_stroke);
 }
 """
+    return vert, frag
+
+
+def _geometry_program(ctx, hatching: bool, shadow: str = "vertex"):
+    vert, frag = geometry_sources("glsl330", hatching, shadow)
     return ctx.program(vertex_shader=vert, fragment_shader=frag)
 
 

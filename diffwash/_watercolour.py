@@ -43,7 +43,8 @@ from ._interpolate import barycentrics, interpolate
 from ._io import check_float32, finite_number
 from ._rasterize import rasterize as rasterize_op
 
-__all__ = ["Watercolour", "parse_watercolour", "watercolour_to_dict", "watercolour_files", "WATERCOLOUR_KEYS"]
+__all__ = ["Watercolour", "parse_watercolour", "watercolour_to_dict", "watercolour_files", "WATERCOLOUR_KEYS",
+           "LOOK_PARAMETERS", "look_parameter_check"]
 
 #: The keys of each effect's object, with their defaults (None: no default, the key is optional).
 WATERCOLOUR_KEYS: dict[str, dict[str, Any]] = {
@@ -77,6 +78,7 @@ class Watercolour(eqx.Module):
     - `pigments`: the `look.Pigments` (granularity, staining, density on this paper).
     - `shadow`: whether the unlit glaze thickens in the object's own shadow.
     - `hatch_scale`: texels of the map's finest level per object unit.
+    - `effects`: the effects the scene turns on (`WATERCOLOUR_KEYS` names).
     """
 
     look: wl.Look
@@ -89,6 +91,7 @@ class Watercolour(eqx.Module):
     pigments: Any = eqx.field(static=True, default=None)
     shadow: bool = eqx.field(static=True, default=True)
     hatch_scale: float = eqx.field(static=True, default=190.0)
+    effects: tuple[str, ...] = eqx.field(static=True, default=tuple(WATERCOLOUR_KEYS))
 
 
 def _fail(msg: str, file: Any, field: str) -> DiffwashError:
@@ -252,6 +255,7 @@ def parse_watercolour(
         pigments=wl.Pigments(*looks),
         shadow=eff["shadow"] is not None,
         hatch_scale=float(scale),
+        effects=tuple(k for k, v in eff.items() if v is not None),
     )
 
 
@@ -261,6 +265,25 @@ _LEAF_KEYS = {"granulation": ("paper", "granulation"), "density": ("paper", "den
               "edge_width": ("edges", "width"), "turbulence": ("unevenness", "turbulence"),
               "dispersion": ("unevenness", "dispersion"), "strokes": ("strokes", "amplitude"),
               "shadow": ("shadow", "strength"), "shadow_bias": ("shadow", "bias"), "hatching": ("hatching", "amount")}  # fmt: skip
+
+
+#: The look's continuous parameters by their scene keys (`watercolour.<effect>.<key>` -> `Look` leaf): what
+#: fit-image can fit. The shadow's depth bias is left out (a step: its gradient is 0).
+LOOK_PARAMETERS: dict[str, str] = {f"watercolour.{e}.{k}": leaf for leaf, (e, k) in _LEAF_KEYS.items() if leaf != "shadow_bias"}
+#: The look parameters that are fractions in [0, 1] (the others are >= 0).
+LOOK_FRACTIONS = frozenset(f"watercolour.{k}" for k in _AT_MOST_ONE)
+
+
+def look_parameter_check(name: str, wc: Watercolour | None, file: Any) -> None:
+    """Refuse to fit the look parameter `name` (a `LOOK_PARAMETERS` key) on a scene whose look lacks it.
+
+    One line naming the scene `file` and the key: no `"watercolour"` object, or the effect is off.
+    """
+    effect = name.split(".")[1]
+    if wc is None:
+        raise _fail('the scene has no "watercolour" object, so it has no look parameters to fit', file, name)
+    if effect not in wc.effects:
+        raise _fail(f'the scene\'s {effect} effect is off; turn it on (e.g. "{effect}": {{}}) to fit it', file, name)
 
 
 def watercolour_to_dict(spec: Any, wc: Watercolour) -> dict:

@@ -19,7 +19,17 @@ linearised from sRGB) or in CIELAB (`loss="lab"`, closer to what the eye sees).
   `paper`); starting values are nudged into [0.01, 0.99] (a logit at 0 or 1
   is infinite);
 - the light by two angles (azimuth and elevation): the model only sees its
-  direction, so its length is not a parameter.
+  direction, so its length is not a parameter;
+- the watercolour look's parameters (`watercolour.edges.darkening`, ...,
+  named by their scene keys): `logit` for the fractions (`paper.granulation`,
+  `shadow.strength`, `hatching.amount`), `log` for the others.
+
+**The look.** A scene with a `"watercolour"` object is fitted as
+`diffwash.render` draws it: the whole look (`diffwash._watercolour.look_image`,
+whose edge blur needs the whole image) at each step, compared at the covered
+pixels. Its continuous parameters can be fitted like the model's; asking for
+one on a scene without a watercolour object, or with that effect off, is a
+one-line error naming the scene file and the key.
 
 **Gauges.** Some parameters trade off exactly; fitting both sides of such a
 trade would leave a direction with no information, so one side is held fixed
@@ -56,9 +66,12 @@ import optimistix as optx
 from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import read_image, read_json
-from .._render import Surface, Visibility, rasterize, surface, surface_thicknesses
+from .._mixture import check_fittable
+from .. import look as wl
 from .. import shading
+from .._render import Surface, Visibility, _kernel_statics, _look_kernel, rasterize, surface, surface_thicknesses
 from .._scene import Scene, load_scene, parse_scene, save_scene
+from .._watercolour import LOOK_FRACTIONS, LOOK_PARAMETERS, look_parameter_check, shadow_triangles
 from ..pigments import Pigment
 from ..shading import Params
 
@@ -79,6 +92,8 @@ FITTABLE: dict[str, tuple[str, int]] = {
     "unlit.S": ("log", 3),
     "paper": ("logit", 3),
     "light": ("sphere", 2),
+    # The watercolour look's continuous parameters (a scene's "watercolour" object, that effect on).
+    **{n: ("logit" if n in LOOK_FRACTIONS else "log", 1) for n in LOOK_PARAMETERS},
 }
 #: Solvers by name: least-squares solvers work on the residuals, minimisers on half their sum of squares.
 SOLVERS = ("lm", "gauss-newton", "dogleg", "bfgs")
@@ -122,7 +137,9 @@ def _gauges(names: tuple[str, ...]) -> tuple[tuple[str, ...], list[str]]:
     return tuple(n for n in names if n not in held), notes
 
 
-def _get(params: Params, name: str) -> np.ndarray:
+def _get(params: Params, name: str, look: wl.Look | None = None) -> np.ndarray:
+    if name in LOOK_PARAMETERS:
+        return np.asarray(getattr(look, LOOK_PARAMETERS[name]), np.float64)
     if "." in name:
         glaze, which = name.split(".")
         return np.asarray(getattr(getattr(params, glaze), which), np.float64)
@@ -134,12 +151,12 @@ def _logit(p: np.ndarray) -> np.ndarray:
     return np.log(p / (1 - p))
 
 
-def _encode(params: Params, names: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """Parameters to the solver's unconstrained variables."""
+def _encode(params: Params, names: tuple[str, ...], look: wl.Look | None = None) -> dict[str, np.ndarray]:
+    """Parameters (and look parameters) to the solver's unconstrained variables."""
     y = {}
     for n in names:
         kind, size = FITTABLE[n]
-        v = _get(params, n).reshape(-1)
+        v = _get(params, n, look).reshape(-1)
         if kind == "log":
             y[n] = np.log(np.maximum(v, 1e-6))
         elif kind == "logit":
@@ -151,10 +168,21 @@ def _encode(params: Params, names: tuple[str, ...]) -> dict[str, np.ndarray]:
     return y
 
 
+def _decode_look(y: dict[str, Any], base: wl.Look | None) -> wl.Look | None:
+    """The solver's look variables back to a `Look` (the others from `base`)."""
+    names = [n for n in y if n in LOOK_PARAMETERS]
+    if not names:
+        return base
+    values = [jax.nn.sigmoid(y[n]) if FITTABLE[n][0] == "logit" else jnp.exp(y[n]) for n in names]
+    return eqx.tree_at(lambda lk: [getattr(lk, LOOK_PARAMETERS[n]) for n in names], base, values)
+
+
 def _decode(y: dict[str, Any], base: Params, light_length: float) -> Params:
-    """The solver's variables back to a `Params` (the others from `base`)."""
+    """The solver's variables back to a `Params` (the others from `base`; look variables are ignored)."""
     values = {}
     for n, v in y.items():
+        if n in LOOK_PARAMETERS:
+            continue
         kind, _ = FITTABLE[n]
         if kind == "log":
             values[n] = jnp.exp(v)
@@ -165,6 +193,8 @@ def _decode(y: dict[str, Any], base: Params, light_length: float) -> Params:
             values[n] = light_length * jnp.stack([jnp.cos(el) * jnp.sin(az), jnp.sin(el), jnp.cos(el) * jnp.cos(az)])
     p = base
     for glaze in ("wash", "unlit"):
+        if f"{glaze}.K" not in values and f"{glaze}.S" not in values:
+            continue  # kept as it is (a library mixture stays one)
         pig = getattr(p, glaze)
         K = values.pop(f"{glaze}.K", pig.K)
         S = values.pop(f"{glaze}.S", pig.S)
@@ -182,7 +212,8 @@ class ImageFit:
 
     **Fields:**
 
-    - `scene`: the (first) scene, and `params` its fitted shading parameters.
+    - `scene`: the (first) scene, with its fitted look if look parameters were
+      fitted, and `params` its fitted shading parameters.
     - `fitted`, `start`: the fitted parameters' values after and before, by name.
     - `held`: parameters a gauge held fixed, and `notes` saying why.
     - `history`: the loss (root mean square residual) after each step.
@@ -311,6 +342,47 @@ def _geometry(vertices, normals, faces, camera, vis, both, target, *, width, hei
     return _View(target=target[jnp.where(valid, pixels, 0)], valid=valid, surface=surf)
 
 
+class _LookView(eqx.Module):
+    """One view of a scene with a watercolour look: the target at the covered pixels and what
+    `diffwash._render._look_kernel` needs besides the parameters (the geometry, the visibility, the
+    scene's `Watercolour` and the shadow map's triangles, all fixed during the fit)."""
+
+    target: Any
+    valid: Any
+    vertices: Any
+    faces: Any
+    normals: Any
+    camera: Any
+    vis: Visibility
+    both: Any
+    wc: Any
+    light_tri: Any
+    width: int = eqx.field(static=True)
+    height: int = eqx.field(static=True)
+    mode: str = eqx.field(static=True)
+
+
+def _prepare_look_view(scene: Scene, vis: Visibility, target: np.ndarray, light: Any, dtype) -> _LookView:
+    cast = lambda a: jnp.asarray(a, dtype) if np.asarray(a).dtype.kind == "f" else a  # noqa: E731
+    mesh, wc = scene.mesh, scene.watercolour
+    light_tri = shadow_triangles(mesh.vertices, mesh.faces, light) if wc.shadow else None
+    pixels = vis.pixels
+    valid = pixels < scene.width * scene.height
+    target = jnp.asarray(np.asarray(target, dtype).reshape(-1, 3))[jnp.where(valid, pixels, 0)]
+    return _LookView(target=target, valid=valid, vertices=cast(mesh.vertices), faces=jnp.asarray(np.asarray(mesh.faces, np.int32)),
+                     normals=cast(mesh.normals), camera=jax.tree.map(cast, scene.camera), vis=vis,
+                     both=np.bool_(not scene.cull_backfaces), wc=jax.tree.map(cast, wc), light_tri=light_tri,
+                     **_kernel_statics(scene))  # fmt: skip
+
+
+def _shade_look(view: _LookView, params: Params, look: wl.Look) -> Any:
+    """Linear RGB at the view's covered pixels: `diffwash.render`'s watercolour look with `params` and `look`."""
+    wc = eqx.tree_at(lambda w: w.look, view.wc, look)
+    rgba = _look_kernel(view.vertices, view.faces, view.normals, view.camera, params, view.vis, view.both, wc,
+                        view.light_tri, width=view.width, height=view.height, mode=view.mode, antialias=False)  # fmt: skip
+    return rgba[..., :3].reshape(-1, 3)[jnp.where(view.valid, view.vis.pixels, 0)]
+
+
 #: The inputs of `_glaze_terms`, in order.
 _GLAZE_INPUTS = ("wash", "unlit", "wash.K", "wash.S", "unlit.K", "unlit.S", "paper")
 
@@ -356,24 +428,29 @@ def _shade(view: _View, params: Params, varying: tuple[bool, ...] = (True,) * 7)
     """Linear RGB at the view's covered pixels: `diffwash.render`'s shading of the stored surface."""
     wash, unlit = surface_thicknesses(view.surface, params)
     inputs = (wash, unlit, params.wash.K, params.wash.S, params.unlit.K, params.unlit.S, params.paper)
-    return _glaze(inputs, varying)
+    return shading.linear_srgb(params, _glaze(inputs, varying))  # spectral glazes: per band, then seen
 
 
 class _Problem(eqx.Module):
     """Everything the residual function needs, as a pytree (one compile per shapes)."""
 
-    views: tuple[_View, ...]
+    views: tuple[_View | _LookView, ...]
     base: Params
     light_length: Any
     loss: str = eqx.field(static=True)
     varying: tuple[bool, ...] = eqx.field(static=True, default=(True,) * 7)
+    look: Any = None
 
 
 def _residuals(y: dict[str, Any], problem: _Problem) -> Any:
     params = _decode(y, problem.base, problem.light_length)
+    look = _decode_look(y, problem.look)
     parts = []
     for view in problem.views:
-        img = _shade(view, params, problem.varying)
+        if isinstance(view, _LookView):
+            img = _shade_look(view, params, look)
+        else:
+            img = _shade(view, params, problem.varying)
         if problem.loss == "lab":
             d = colorimetry.linear_srgb_to_lab(img) - colorimetry.linear_srgb_to_lab(view.target)
         else:
@@ -405,7 +482,9 @@ def fit_image(
     - `scenes`: a `Scene` or scene path, or a list matching `targets` (one per
       view: their geometry and cameras; the shading parameters are shared and
       taken from the first).
-    - `fit`: the parameter names (see `FITTABLE`), a list or comma-separated text.
+    - `fit`: the parameter names (see `FITTABLE`), a list or comma-separated text;
+      look parameters (`watercolour.edges.darkening`, ...) need the scenes' look
+      to have that effect on.
     - `start`: starting parameters (default: the first scene's).
     - `loss`: `"linear"` (linear RGB) or `"lab"` (CIELAB).
     - `solver`: `"lm"` (Levenberg-Marquardt), `"gauss-newton"`, `"dogleg"` or `"bfgs"`.
@@ -435,25 +514,24 @@ def fit_image(
     if len(scene_list) != len(target_list):
         raise DiffwashError(f"got {len(target_list)} targets but {len(scene_list)} scenes: give one scene per target "
                             f"(or one for all)", field="--scene")  # fmt: skip
+    for n in (n for n in names if n in LOOK_PARAMETERS):
+        for s in scene_list:
+            look_parameter_check(n, s.watercolour, s.path)
     free, notes = _gauges(names)
     held = tuple(n for n in names if n not in free)
     base = start if start is not None else scene_list[0].params
+    check_fittable(base, names)
+    wc0 = scene_list[0].watercolour
+    base_look = None if wc0 is None else wc0.look
     dtype = jnp.zeros(()).dtype
-
-    views = []
-    for i, (t, s) in enumerate(zip(target_list, scene_list)):
-        linear = _read_target(t, s, i)
-        vis = rasterize(s)
-        if not np.any(np.asarray(vis.tri_id) >= 0):
-            raise DiffwashError(f"the object covers no pixel of view {i}: nothing to compare", file=s.path)
-        views.append(_prepare_view(s, vis, linear, dtype))
+    views = _views(target_list, scene_list, base, dtype)
     light_length = float(np.linalg.norm(np.asarray(base.light, np.float64)))
     cast = lambda a: jnp.asarray(a, dtype) if np.asarray(a).dtype.kind == "f" else a  # noqa: E731
     thick = {"gain", "bias", "wash_reduction", "k_wash", "k_unlit", "k_specular", "shininess", "light"}
     varying = (bool(thick & set(free)),) * 2 + tuple(n in free for n in _GLAZE_INPUTS[2:])
     problem = _Problem(views=tuple(views), base=jax.tree.map(cast, base), light_length=jnp.asarray(light_length, dtype),
-                       loss=loss, varying=varying)  # fmt: skip
-    y0 = {k: jnp.asarray(v, dtype) for k, v in _encode(base, free).items()}
+                       loss=loss, varying=varying, look=jax.tree.map(cast, base_look))  # fmt: skip
+    y0 = {k: jnp.asarray(v, dtype) for k, v in _encode(base, free, base_look).items()}
     tol = 1e-6 if dtype == jnp.float64 else 1e-4
     opt = _make_solver(solver, rtol if rtol is not None else tol, atol if atol is not None else tol)
     y, history, steps, result, r = _iterate(opt, y0, problem, max_steps, progress, gtol if gtol is not None else tol)
@@ -467,13 +545,32 @@ def fit_image(
         used = 3 * int(np.sum(np.asarray(view.valid)))
         rms.append(float(np.sqrt(np.sum(r[off : off + n] ** 2) / used)))
         off += n
-    fitted = {n: np.asarray(_get(params, n)) for n in names}
-    started = {n: np.asarray(_get(base, n)) for n in names}
-    params = jax.tree.map(lambda a: np.asarray(a, np.float64) if isinstance(a, jax.Array) else a, params)
-    return ImageFit(scene=scene_list[0], params=params,
+    to_np = lambda a: np.asarray(a, np.float64) if isinstance(a, jax.Array) else a  # noqa: E731
+    look = jax.tree.map(to_np, _decode_look(y, base_look))
+    fitted = {n: np.asarray(_get(params, n, look)) for n in names}
+    started = {n: np.asarray(_get(base, n, base_look)) for n in names}
+    params = jax.tree.map(to_np, params)
+    fits_look = any(n in LOOK_PARAMETERS for n in free)
+    scene = eqx.tree_at(lambda sc: sc.watercolour.look, scene_list[0], look) if fits_look else scene_list[0]
+    return ImageFit(scene=scene, params=params,
                     fitted=fitted, start=started, held=held, notes=notes, history=history, iterations=steps,
                     converged=bool(converged), message=str(message), rms=rms, loss=loss, solver=solver,
                     seconds=time.perf_counter() - t_start, start_params=base)  # fmt: skip
+
+
+def _views(target_list: list, scene_list: list[Scene], base: Params, dtype) -> list[_View | _LookView]:
+    """Each view's fixed part: the plain model's `_View`, or a `_LookView` for a scene with a watercolour look."""
+    views = []
+    for i, (t, s) in enumerate(zip(target_list, scene_list)):
+        linear = _read_target(t, s, i)
+        vis = rasterize(s)
+        if not np.any(np.asarray(vis.tri_id) >= 0):
+            raise DiffwashError(f"the object covers no pixel of view {i}: nothing to compare", file=s.path)
+        if s.watercolour is not None:
+            views.append(_prepare_look_view(s, vis, linear, np.asarray(base.light, np.float64), dtype))
+        else:
+            views.append(_prepare_view(s, vis, linear, dtype))
+    return views
 
 
 _residual_jit = jax.jit(_residuals)

@@ -11,7 +11,11 @@
 - `uniforms.json`: the scene's values of every uniform the shaders declare;
 - `mesh.glb`: the mesh with its normals (binary glTF, via trimesh);
 - `scene.json`: the scene, with explicit pigments, pointing at `mesh.glb`;
-- `viewer.html`: a self-contained WebGL2 page (`diffwash._viewer`).
+- `viewer.html`: a self-contained WebGL2 page (`diffwash._viewer`);
+- for a scene with a `"watercolour"` object, `look/`: the look's passes
+  (shaders, input textures as `.npy`, `passes.json`, `uniforms.json`, a
+  `README.md`; `diffwash._look_export`), the mesh's per-vertex mix and stroke
+  layer as the GLB's `_MIX` and `_STROKE` attributes, and the viewer draws the look.
 
 The folder appears whole or not at all: everything is written into a temporary
 folder beside it, which is then renamed.
@@ -29,6 +33,7 @@ import trimesh
 from . import lut as _lut
 from ._errors import DiffwashError
 from ._io import atomic_folder
+from ._look_export import LOOK_FOLDER, LookExport, look_export, write_look
 from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
 from ._scene import Mesh, Scene, load_scene, scene_to_dict
 from ._viewer import viewer_html
@@ -52,14 +57,20 @@ EXPORT_FILES = (
 )
 
 
-def mesh_glb(mesh: Mesh) -> bytes:
-    """The mesh (vertices, faces, vertex normals) as binary glTF 2.0."""
+def mesh_glb(mesh: Mesh, attributes: dict[str, np.ndarray] | None = None) -> bytes:
+    """The mesh (vertices, faces, vertex normals) as binary glTF 2.0.
+
+    `attributes`: extra per-vertex float attributes, by glTF name (application
+    attributes start with `_`, e.g. the look's `_MIX` and `_STROKE`).
+    """
     m = trimesh.Trimesh(
         vertices=np.asarray(mesh.vertices, np.float64),
         faces=np.asarray(mesh.faces, np.int64),
         vertex_normals=np.asarray(mesh.normals, np.float64),
         process=False,
     )
+    for name, values in (attributes or {}).items():
+        m.vertex_attributes[name] = np.asarray(values, np.float32)
     return m.export(file_type="glb")
 
 
@@ -124,27 +135,45 @@ def export(
         raise DiffwashError("output folder's parent does not exist", file=folder.parent)
 
     table = _lut.bake(params, size, kind=kind)
+    look = None if scene.watercolour is None else look_export(scene, params, target=target)
     with atomic_folder(folder) as tmp:
-        written = _lut.save(tmp / f"lut{_lut.FORMATS[fmt][0]}", table, fmt)
-        colour = "lut-rt" if kind == "rt" else "lut"
-        lut_srgb = _lut.FORMATS[fmt][1] == "srgb"
-        for mode in SHADING_MODES:
-            vert, frag = shader_sources(target, mode, colour=colour, lut_srgb=lut_srgb, output_srgb=True)
-            for name, text in zip(shader_file_names(mode), (vert, frag)):
-                (tmp / name).write_text(text, encoding="utf-8")
-                written.append(tmp / name)
-        (tmp / "watercolour.glsl").write_text(
-            functions_source(target, colour=colour, lut_srgb=lut_srgb, output_srgb=True), encoding="utf-8"
-        )
-        written.append(tmp / "watercolour.glsl")
-        uniforms = uniform_values(scene, params, lut=table)
-        uniforms = {"//": "values of the shaders' uniforms for this scene; matrices are row-major (m[row][col])", **uniforms}
-        (tmp / "uniforms.json").write_text(json.dumps(uniforms, indent=2) + "\n", encoding="utf-8")
-        glb = mesh_glb(scene.mesh)
-        (tmp / "mesh.glb").write_bytes(glb)
-        data = scene_to_dict(scene, params, relative_to=folder)
-        data["mesh"] = "mesh.glb"
-        (tmp / "scene.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-        (tmp / "viewer.html").write_text(viewer_html(scene, table, glb, params=params), encoding="utf-8")
-        written += [tmp / n for n in ("uniforms.json", "mesh.glb", "scene.json", "viewer.html")]
-    return [folder / p.name for p in written]
+        written = _write_plain(tmp, scene, params, table, target=target, fmt=fmt, kind=kind)
+        viewer_look = look if look is None or target == "webgl2" else look_export(scene, params, target="webgl2")
+        written += _write_scene(tmp, folder, scene, params, table, look, viewer_look)
+    return [folder / p.relative_to(tmp) for p in written]
+
+
+def _write_plain(tmp: Path, scene: Scene, params: Params, table: _lut.Lut, *, target: str, fmt: str, kind: str) -> list[Path]:
+    """The plain model's LUT, shaders, shader functions and uniforms."""
+    written = _lut.save(tmp / f"lut{_lut.FORMATS[fmt][0]}", table, fmt)
+    colour = "lut-rt" if kind == "rt" else "lut"
+    lut_srgb = _lut.FORMATS[fmt][1] == "srgb"
+    for mode in SHADING_MODES:
+        vert, frag = shader_sources(target, mode, colour=colour, lut_srgb=lut_srgb, output_srgb=True)
+        for name, text in zip(shader_file_names(mode), (vert, frag)):
+            (tmp / name).write_text(text, encoding="utf-8")
+            written.append(tmp / name)
+    (tmp / "watercolour.glsl").write_text(
+        functions_source(target, colour=colour, lut_srgb=lut_srgb, output_srgb=True), encoding="utf-8"
+    )
+    written.append(tmp / "watercolour.glsl")
+    uniforms = uniform_values(scene, params, lut=table)
+    uniforms = {"//": "values of the shaders' uniforms for this scene; matrices are row-major (m[row][col])", **uniforms}
+    (tmp / "uniforms.json").write_text(json.dumps(uniforms, indent=2) + "\n", encoding="utf-8")
+    return [*written, tmp / "uniforms.json"]
+
+
+def _write_scene(
+    tmp: Path, folder: Path, scene: Scene, params: Params, table: _lut.Lut, look: LookExport | None, viewer_look: LookExport | None
+) -> list[Path]:
+    """The mesh, the scene file, the look's passes (when the scene has one) and the viewer."""
+    glb = mesh_glb(scene.mesh, None if look is None else look.attributes)
+    (tmp / "mesh.glb").write_bytes(glb)
+    data = scene_to_dict(scene, params, relative_to=folder)
+    data["mesh"] = "mesh.glb"
+    (tmp / "scene.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    written = [tmp / "mesh.glb", tmp / "scene.json"]
+    if look is not None:
+        written += write_look(tmp / LOOK_FOLDER, look)
+    (tmp / "viewer.html").write_text(viewer_html(scene, table, glb, params=params, look=viewer_look), encoding="utf-8")
+    return [*written, tmp / "viewer.html"]

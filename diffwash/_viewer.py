@@ -7,6 +7,13 @@ GLB (base64). Its first frame is the scene's camera and light, so it can be
 compared with `diffwash render`; then the mouse orbits the camera and moves the
 light, and a panel toggles per-vertex / per-pixel thickness and tunes the
 constants that do not change the LUT's range.
+
+For a scene with a `"watercolour"` object the page also embeds the look's
+passes (`diffwash._look_export`: the `webgl2` shaders, the pass graph, the
+uniforms, the input textures as half floats, the mix and stroke layer in the
+GLB) and draws them: a light depth pass, a float G-buffer, the edge blur and
+the final pass. That needs `EXT_color_buffer_float`; without it the page
+says so and shows the plain model.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ._glsl import shader_file_names, shader_sources, uniform_values
+from ._look_export import LookExport
 from ._version import __version__
 from .colorimetry import to_display
 from .lut import Lut
@@ -45,8 +53,46 @@ def _live_constants(u: dict) -> list[dict]:
     ]
 
 
-def viewer_html(scene: Any, lut: Lut, mesh_glb: bytes, *, params: Any = None, title: str | None = None) -> str:
+def _light_frustum(look: LookExport, light: np.ndarray, centre: np.ndarray) -> dict[str, Any]:
+    """What the page needs to redo `light_view_projection` when the light moves, read off the scene's matrix.
+
+    Only the light's basis turns with it: rows 0 and 1 are `(x, -x.c) / r`,
+    `(y, -y.c) / r` and row 2 is `(a d, -a d.c + k)` (`d` the unit direction
+    towards the light, `c` the bounding box's centre), with the half-size `r`,
+    the depth scale `a` and offset `k` the same for every direction (the
+    page's `lightViewProjection`; a test holds it against this matrix).
+    """
+    vp = np.asarray(look.uniforms["look_light_view_projection"], np.float64)
+    d = light / np.linalg.norm(light)
+    a = float(vp[2, :3] @ d)
+    return {
+        "centre": centre.tolist(),
+        "half_size": float(1 / np.linalg.norm(vp[0, :3])),
+        "depth_scale": a,
+        "depth_offset": float(vp[2, 3] + a * (d @ centre)),
+    }
+
+
+def _look_config(look: LookExport, centre: np.ndarray) -> dict[str, Any]:
+    textures = {
+        name: {
+            "channels": int(levels[0].shape[-1]),
+            "levels": [{"shape": list(lv.shape[:-1]), "half_float": _b64(np.ascontiguousarray(lv).astype("<f2").tobytes())} for lv in levels],
+        }
+        for name, levels in look.textures.items()
+    }
+    light = _light_frustum(look, np.asarray(look.uniforms["light_direction"], np.float64), centre)
+    return {"graph": look.graph, "shaders": look.shaders, "uniforms": look.uniforms, "textures": textures, "light": light}
+
+
+def viewer_html(
+    scene: Any, lut: Lut, mesh_glb: bytes, *, params: Any = None, title: str | None = None, look: LookExport | None = None
+) -> str:
     """The viewer page for `scene` drawn with `lut` and the mesh `mesh_glb` (GLB bytes).
+
+    `look`: the scene's watercolour look for the `webgl2` target
+    (`diffwash._look_export.look_export`); the mesh must then carry its
+    `_MIX` and `_STROKE` attributes.
 
     **Returns:**
 
@@ -87,6 +133,7 @@ def viewer_html(scene: Any, lut: Lut, mesh_glb: bytes, *, params: Any = None, ti
         "background": to_display(np.asarray(p.paper, np.float64)).tolist(),
         "pigments": {"wash": p.wash.name, "unlit": p.unlit.name},
         "version": __version__,
+        "look": None if look is None else _look_config(look, centre),
     }
     # JSON is valid JavaScript; "</" is escaped so the data cannot close the <script> element.
     blob = json.dumps(config, separators=(",", ":")).replace("</", "<\\/")

@@ -4,6 +4,11 @@ The same `Preview` (exported `glsl330` shaders, LUT texture) drawn into a window
 left-drag orbits the camera about its target, right- or shift-drag moves the
 light, the wheel zooms, `V` toggles per-vertex / per-pixel, `R` resets, `Esc`
 closes. glfw is an optional dependency (`pip install 'diffwash[window]'`).
+
+A scene with a `"watercolour"` object is drawn by the look's passes
+(`diffwash.look._frame.LookFrame`, per-pixel thickness, at the scene's image
+size): the orbit updates the camera's uniforms, and moving the light draws
+the light's depth map again.
 """
 
 from __future__ import annotations
@@ -18,6 +23,9 @@ from ._errors import DiffwashError, FailureError
 from ._glsl import uniform_values
 from ._preview import Preview, has_display
 from ._render import SHADING_MODES
+from .look import _gl
+from .look._frame import LookFrame
+from .look._shadow import glsl_depth_pass, light_view_projection
 
 __all__ = ["show"]
 
@@ -88,6 +96,53 @@ class _Orbit:
         return {**base, "eye": self.eye.tolist(), "light_direction": self.light.tolist(), "view_projection": vp.tolist()}
 
 
+class _LookView:
+    """The look's passes following the window's orbit: the camera's uniforms, and the light's depth map when it moves."""
+
+    def __init__(self, ctx: Any, scene: Any, params: Any = None):
+        self.ctx, self.frame = ctx, LookFrame(ctx, scene, params)
+        self.vertices = np.asarray(scene.mesh.vertices, np.float64)
+        vert, frag = glsl_depth_pass()
+        head = _gl.header("glsl330")
+        self.depth = ctx.program(vertex_shader=head + vert, fragment_shader=head + frag)
+        self.depth_vao = ctx.vertex_array(self.depth, [(self.frame.vbo, "3f 20x", "position")], self.frame.ibo)
+        size = self.frame.shadow_map.size
+        self.depth_fbo = ctx.framebuffer([self.frame.shadow_map], ctx.depth_renderbuffer(size))
+        self.light = np.asarray(self.frame.uniforms["light_direction"], np.float64)
+
+    def _set(self, values: dict) -> None:
+        for prog in (self.frame.geometry, self.depth):
+            for name, v in values.items():
+                if name in prog:
+                    a = np.asarray(v, np.float32)
+                    prog[name].write((a.T if a.ndim == 2 else a).tobytes())
+
+    def _shadow_map(self, light: np.ndarray) -> None:
+        """The light's depth map again, for a light that moved (as `LookFrame` draws it for the scene's)."""
+        vp = np.asarray(light_view_projection(self.vertices, light), np.float64)
+        self._set({"look_light_view_projection": vp})
+        ctx = self.ctx
+        self.depth_fbo.use()
+        ctx.viewport = (0, 0, *self.depth_fbo.size)
+        self.depth_fbo.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        self.depth_vao.render(moderngl.TRIANGLES)
+        self.light = light
+
+    def draw(self, values: dict) -> Any:
+        """Draw the look for the orbit's uniforms (`_Orbit.uniforms`); returns the framebuffer holding the frame."""
+        light = np.asarray(values["light_direction"], np.float64)
+        if not np.array_equal(light, self.light):
+            self._shadow_map(light)
+        eye = np.asarray(values["eye"], np.float64)
+        forward = np.asarray(self.frame.scene.camera.target, np.float64) - eye
+        self._set({"view_projection": values["view_projection"], "eye": eye, "light_direction": light,
+                   "eye_forward": forward / np.linalg.norm(forward)})  # fmt: skip
+        self.frame.draw()
+        return self.frame.ofbo
+
+
 def _glfw() -> Any:
     try:
         import glfw  # optional: the `window` extra
@@ -98,8 +153,9 @@ def _glfw() -> Any:
     return glfw
 
 
-def _open(glfw: Any, width: int, height: int, title: str) -> Any:
+def _open(glfw: Any, width: int, height: int, title: str, *, resizable: bool = True) -> Any:
     """A window with an OpenGL 3.3 core context, made current."""
+    glfw.window_hint(glfw.RESIZABLE, resizable)
     glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 3)
     glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 3)
     glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -139,6 +195,23 @@ def _bind(glfw: Any, window: Any, orbit: _Orbit, state: dict, title: str) -> Non
     glfw.set_key_callback(window, on_key)
 
 
+def _loop(glfw: Any, window: Any, ctx: Any, draw: Any, frames: int | None, keep_last: bool) -> np.ndarray | None:
+    """Draw until the window closes (or for `frames` frames); the last frame shown when `keep_last`."""
+    count, last = 0, None
+    while not glfw.window_should_close(window):
+        width, height = glfw.get_framebuffer_size(window)
+        draw(width, height)
+        count += 1
+        if keep_last:
+            data = ctx.screen.read(viewport=(0, 0, width, height), components=3, dtype="f1")
+            last = np.frombuffer(data, np.uint8).reshape(height, width, 3)[::-1] / np.float32(255)
+        if frames is not None and count >= frames:
+            break
+        glfw.swap_buffers(window)
+        glfw.poll_events()
+    return last
+
+
 def show(
     scene: Any,
     params: Any = None,
@@ -165,33 +238,29 @@ def show(
     if not glfw.init():
         raise FailureError("cannot open a window: glfw could not initialise (is the display reachable?)")
     try:
-        title = f"diffwash preview: {scene.path or 'scene'}"
-        window = _open(glfw, scene.width, scene.height, title)
+        look = getattr(scene, "watercolour", None) is not None
+        title = f"diffwash preview: {scene.path or 'scene'}" + (" (watercolour look)" if look else "")
+        window = _open(glfw, scene.width, scene.height, title, resizable=not look)
         ctx = moderngl.create_context()
         state = {"shading": scene.shading if shading is None else shading}
-        previews: dict[str, Preview] = {}
-        first = previews.setdefault(state["shading"], Preview(ctx, scene, params, lut=lut, shading=state["shading"]))
-        base = uniform_values(scene, first.params, lut=first.lut)
+        if look:
+            view = _LookView(ctx, scene, params)
+            base = view.frame.uniforms
+            draw = lambda width, height: ctx.copy_framebuffer(ctx.screen, view.draw(orbit.uniforms(base, scene.width, scene.height)))  # noqa: E731
+        else:
+            previews: dict[str, Preview] = {}
+            first = previews.setdefault(state["shading"], Preview(ctx, scene, params, lut=lut, shading=state["shading"]))
+            base = uniform_values(scene, first.params, lut=first.lut)
+
+            def draw(width: int, height: int) -> None:
+                mode = state["shading"]
+                p = previews.get(mode) or previews.setdefault(mode, Preview(ctx, scene, params, lut=lut, shading=mode))
+                p.set_uniforms(orbit.uniforms(base, width, height))
+                ctx.viewport = (0, 0, width, height)
+                p.draw(ctx.screen)
+
         orbit = _Orbit(scene, base["light_direction"])
         _bind(glfw, window, orbit, state, title)
-        count, last = 0, None
-        while not glfw.window_should_close(window):
-            width, height = glfw.get_framebuffer_size(window)
-            mode = state["shading"]
-            p = previews.get(mode) or previews.setdefault(mode, Preview(ctx, scene, params, lut=lut, shading=mode))
-            p.set_uniforms(orbit.uniforms(base, width, height))
-            ctx.viewport = (0, 0, width, height)
-            p.draw(ctx.screen)
-            count += 1
-            if keep_last:
-                data = ctx.screen.read(viewport=(0, 0, width, height), components=3, dtype="f1")
-                last = np.frombuffer(data, np.uint8).reshape(height, width, 3)[::-1] / np.float32(255)
-            if frames is not None and count >= frames:
-                break
-            glfw.swap_buffers(window)
-            glfw.poll_events()
-        for p in previews.values():
-            p.release()
-        return last
+        return _loop(glfw, window, ctx, draw, frames, keep_last)
     finally:
         glfw.terminate()

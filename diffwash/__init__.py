@@ -29,6 +29,7 @@ from ._export import export as export
 from ._glsl import functions_source as functions_source
 from ._glsl import shader_sources as shader_sources
 from ._glsl import uniform_values as uniform_values
+from ._mixture import Mixture as Mixture
 from ._render import SHADING_MODES as SHADING_MODES
 from ._render import Visibility as Visibility
 from ._render import clear_visibility_cache as clear_visibility_cache

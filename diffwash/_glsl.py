@@ -28,7 +28,10 @@ A third colour path, `colour="km"`, evaluates Kubelka-Munk per fragment instead
 of reading a LUT (uniforms `wash_K`, `wash_S`, `unlit_K`, `unlit_S`, `paper`).
 It exists to measure the seed's claim that the LUT is faster
 (benchmarks/bench_lut.py) and to check the LUT against an independent
-evaluation on the GPU.
+evaluation on the GPU. It takes three-channel pigments only: a scene with
+spectral glazes (library pigments, `shading.Params.observation`) is seen
+through its baked colour LUT, and its `paper` uniform is the paper's linear
+sRGB (`shading.paper_colour`).
 """
 
 from __future__ import annotations
@@ -439,9 +442,10 @@ def uniform_values(
     out: dict[str, Any] = {k: _f(getattr(p, k)) for k in CONSTANTS}
     out["light_direction"] = _v3(p.light)
     out["eye"] = _v3(cam.eye)
-    out["paper"] = _v3(p.paper)
-    out["wash_K"], out["wash_S"] = _v3(p.wash.K), _v3(p.wash.S)
-    out["unlit_K"], out["unlit_S"] = _v3(p.unlit.K), _v3(p.unlit.S)
+    out["paper"] = _v3(shading.paper_colour(p))
+    if p.observation is None:  # the per-fragment KM path's pigments; spectral glazes exist only in the LUT
+        out["wash_K"], out["wash_S"] = _v3(p.wash.K), _v3(p.wash.S)
+        out["unlit_K"], out["unlit_S"] = _v3(p.unlit.K), _v3(p.unlit.S)
     out["lut_wash_max"] = float(lut.wash_max) if lut is not None else _f(p.wash_max)
     out["lut_unlit_max"] = float(lut.unlit_max) if lut is not None else _f(p.unlit_max)
     out["two_sided"] = not scene.cull_backfaces

@@ -23,7 +23,7 @@ from .colorimetry import to_display
 from ._scene import Scene
 from .look._frame import LookFrame
 from .lut import Lut, bake, load_encoded
-from .shading import Params
+from .shading import Params, check_per_channel, paper_colour
 
 __all__ = ["Preview", "create_context", "render", "has_display", "can_show", "renderer_name"]
 
@@ -85,6 +85,8 @@ class Preview:
         self.shading = scene.shading if shading is None else shading
         if colour is None:
             colour = "lut-rt" if (lut is not None and lut.kind == "rt") else "lut"
+        if colour == "km":
+            check_per_channel(self.params, 'the per-fragment shader (colour="km")')
         if colour != "km" and lut is None:
             # What `diffwash export` writes by default: 256^2, 16-bit sRGB PNG.
             lut = load_encoded(bake(self.params, 256, kind="rt" if colour == "lut-rt" else "colour"), "png16")
@@ -133,7 +135,7 @@ class Preview:
 
     def background(self) -> tuple[float, float, float]:
         """The clear colour: bare paper, as the shader writes colours."""
-        paper = np.asarray(self.params.paper, np.float64)
+        paper = np.asarray(paper_colour(self.params), np.float64)
         return tuple(float(c) for c in (paper if self.linear else to_display(paper)))
 
     def draw(self, fbo: moderngl.Framebuffer) -> None:

@@ -16,7 +16,8 @@ nvdiffrast's) with the watercolour model of `diffwash.shading`:
      vertex)`), interpolated perspective-correctly.
 
    In both the Kubelka-Munk glazes (`shading.glaze`, `diffwash.km`) are
-   evaluated per pixel. Where back faces are drawn (open meshes), a
+   evaluated per pixel, per band (the three sRGB channels, or a spectral
+   library's wavelengths, then seen as linear sRGB: `shading.colour`). Where back faces are drawn (open meshes), a
    back-facing triangle is shaded with its normals turned towards the eye
    (OpenGL's two-sided lighting).
 4. Uncovered pixels show the bare paper.
@@ -303,7 +304,7 @@ def _shade(vertices, faces, normals, camera, params, vis, both, *, width, height
     """Linear RGB of the covered pixels `vis.pixels`: (P, 3), and the clip-space vertices."""
     surf, clip = surface(vertices, faces, normals, camera, vis, both, width=width, height=height, mode=mode)
     wash, unlit = surface_thicknesses(surf, params)
-    return shading.glaze(params, wash, unlit), clip
+    return shading.colour(params, wash, unlit), clip
 
 
 @functools.partial(jax.jit, static_argnames=("width", "height", "mode", "antialias"))
@@ -311,7 +312,7 @@ def _render_kernel(vertices, faces, normals, camera, params, vis, both, *, width
     """(H, W, 4): linear RGB and coverage."""
     rgb, clip = _shade(vertices, faces, normals, camera, params, vis, both, width=width, height=height, mode=mode)
     n = width * height
-    paper = jnp.broadcast_to(jnp.asarray(params.paper, rgb.dtype), (n, rgb.shape[-1]))
+    paper = jnp.broadcast_to(jnp.asarray(shading.paper_colour(params), rgb.dtype), (n, rgb.shape[-1]))
     image = paper.at[vis.pixels].set(rgb, mode="drop", unique_indices=True)
     cover = jnp.zeros((n, 1), rgb.dtype).at[vis.pixels].set(1, mode="drop", unique_indices=True)
     image = jnp.concatenate([image, cover], axis=1)
@@ -407,7 +408,7 @@ def render(
     **Returns:**
 
     (H, W, 3) linear RGB reflectance; row 0 is the top of the image.
-    Uncovered pixels show the paper (`params.paper`). Images of more than
+    Uncovered pixels show the paper (`params.paper`, seen as linear sRGB). Images of more than
     `TILE_PIXELS` pixels (concrete geometry, no `visibility` given) are drawn
     in strips (`render_strips`), which bounds the memory the rasterizer and
     the shading take.

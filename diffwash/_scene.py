@@ -7,7 +7,8 @@
  "light": {"direction": [1,1,1]},          // towards the light, world space
  "shading": "per-pixel",                   // or "per-vertex"
  "paper": [0.92, 0.90, 0.84],              // linear reflectance of the paper
- "wash": {"pigment": "Quinacridone Rose"}, // or {"K": [...], "S": [...]}, or a pigment file
+ "wash": {"pigment": "Quinacridone Rose"}, // or {"K": [...], "S": [...]}, or a pigment file, or
+                                           // {"library": "paints.json", "mix": {"P1": 0.6, "P4": 0.4}}
  "unlit": {"pigment": "French Ultramarine"},
  "k_wash": 1.0, "k_specular": 1.0, "shininess": 20, "k_unlit": 1.0,
  "gain": 0.5, "bias": 0.5, "wash_reduction": 0.0}
@@ -23,6 +24,7 @@ import difflib
 import logging
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -35,8 +37,11 @@ from . import pigments as _pigments
 from ._camera import Camera
 from ._errors import DiffwashError
 from ._io import FLOAT32_MAX, check_float32, finite_number, read_json, write_json
+from ._mixture import Mixture, mixture
 from ._watercolour import Watercolour, parse_watercolour, watercolour_files, watercolour_to_dict
+from .library import Library, load_library
 from .shading import DEFAULT_CONSTANTS, DEFAULT_PAPER, Params
+from .spectral import Observation
 
 __all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "referenced_files", "MAX_IMAGE_SIDE"]
 
@@ -237,6 +242,171 @@ def _pigment(spec: Any, key: str, file: Any, base: Path) -> _pigments.Pigment:
     raise _fail('needs "pigment" (a name or file) or "K" and "S"', file, key)
 
 
+#: Keys of a glaze made of library pigments.
+_LIBRARY_KEYS = {"library", "pigment", "mix", "amount"}
+#: How far a mix's proportions may sum from 1.
+_SUM_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class _Glaze:
+    """A parsed glaze: its pigment or mixture, and how its bands are seen (None: three sRGB channels)."""
+
+    pigment: _pigments.Pigment | Mixture
+    observation: Observation | None
+    library: Library | None = None
+    source: str | None = None  # the library as the scene names it
+
+
+def _load_library(ref: Any, file: Any, field: str, base: Path, cache: dict) -> tuple[Library, Path]:
+    """The library file `ref` (relative to the scene), read once per parse; errors name the scene's field."""
+    if not isinstance(ref, str) or not ref:
+        raise _fail("must be the path of a pigment library (written by diffwash fit-swatch --table)", file, field)
+    path = base / ref
+    key = os.path.abspath(path)
+    if key not in cache:
+        if not path.is_file():
+            raise _fail(f"no such library file: {ref}", file, field)
+        try:
+            lib = load_library(path)
+        except DiffwashError as e:
+            where = f"{e.field}: " if e.field else ""
+            raise _fail(f"{ref}: {where}{e.problem}", file, field) from None
+        if lib.k2 != 0:
+            raise _fail(f"{ref}: surface.k2 = {lib.k2:g}, but scenes do not model Saunderson's surface term; use a "
+                        "library fitted without --surface saunderson", file, field)  # fmt: skip
+        cache[key] = lib
+    return cache[key], path
+
+
+def _proportions(mix: Any, file: Any, field: str) -> dict[str, float]:
+    """A mix's `{NAME: proportion}`: numbers >= 0 summing to 1, each name once."""
+    if not isinstance(mix, dict) or not mix:
+        raise _fail('must be a non-empty object {"PIGMENT": proportion, ...}', file, field)
+    seen: dict[str, str] = {}
+    out = {}
+    for name, v in mix.items():
+        if name.lower() in seen:
+            raise _fail(f"names the pigment of {seen[name.lower()]!r} again", file, f"{field}.{name}")
+        seen[name.lower()] = name
+        if not finite_number(v) or v < 0:
+            raise _fail(f"must be a proportion >= 0, got {v!r}", file, f"{field}.{name}")
+        out[name] = float(v)
+    total = sum(out.values())
+    if abs(total - 1) > _SUM_TOLERANCE:
+        raise _fail(f"proportions must sum to 1, got {' + '.join(f'{v:g}' for v in out.values())} = {total:g}",
+                    file, field)  # fmt: skip
+    return out
+
+
+def _library_glaze(spec: dict, key: str, file: Any, base: Path, cache: dict) -> _Glaze:
+    """`{"library": FILE, "pigment": NAME}` or `{"library": FILE, "mix": {...}}`, with an optional `amount`."""
+    _check_keys(spec, _LIBRARY_KEYS, file, f"{key}.")
+    lib, path = _load_library(spec["library"], file, f"{key}.library", base, cache)
+    if ("pigment" in spec) == ("mix" in spec):
+        raise _fail('needs either "pigment" (a name in the library) or "mix" ({"NAME": proportion, ...})', file, key)
+    if "pigment" in spec:
+        name = spec["pigment"]
+        if not isinstance(name, str) or not name:
+            raise _fail("must be a pigment name of the library", file, f"{key}.pigment")
+        props, fields = {name: 1.0}, {name: f"{key}.pigment"}
+    else:
+        props = _proportions(spec["mix"], file, f"{key}.mix")
+        fields = {n: f"{key}.mix.{n}" for n in props}
+    known = {n.lower() for n in lib.names}
+    for n in props:
+        if n.lower() not in known:
+            close = difflib.get_close_matches(n, list(lib.names), n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise _fail(f"no pigment {n!r} in {spec['library']} (it has {', '.join(lib.names)}){hint}", file, fields[n])
+    amount = _number(spec, "amount", file, f"{key}.amount", lo=0, lo_open=True) if "amount" in spec else None
+    obs = lib.observation if lib.spectral else None
+    return _Glaze(mixture(lib, props, amount, source=path), obs, lib, spec["library"])
+
+
+def _glaze(spec: Any, key: str, file: Any, base: Path, cache: dict) -> _Glaze:
+    if isinstance(spec, dict) and "library" in spec:
+        return _library_glaze(spec, key, file, base, cache)
+    return _Glaze(_pigment(spec, key, file, base), None)
+
+
+def _bands(g: _Glaze) -> str:
+    if g.observation is None:
+        return "a 3-channel pigment" if g.library is None else f"from {g.source} (sRGB channels)"
+    obs = g.observation
+    return (f"spectral ({len(obs.bands)} bands, {obs.wavelengths[0]:g}-{obs.wavelengths[-1]:g} nm, {obs.illuminant}, "
+            f"{obs.observer}, of {g.source})")  # fmt: skip
+
+
+def _parse_glazes(data: dict, file: Any, base: Path, cache: dict) -> tuple[_Glaze, _Glaze]:
+    """The `wash` and `unlit` glazes, seen alike (both three channels, or both on one spectral grid)."""
+    for key in ("wash", "unlit"):
+        if key not in data:
+            raise _fail("missing key", file, key)
+    wash = _glaze(data["wash"], "wash", file, base, cache)
+    unlit = _glaze(data["unlit"], "unlit", file, base, cache)
+    seen = [None if g.observation is None else g.observation.describe() for g in (wash, unlit)]
+    if seen[0] != seen[1]:
+        raise _fail(f"is {_bands(unlit)} but wash is {_bands(wash)}: both glazes must be seen alike (both "
+                    "3-channel, or spectral on the same bands, illuminant and observer)", file, "unlit")  # fmt: skip
+    spectral = wash.observation is not None
+    if isinstance(wash.pigment, Mixture) or isinstance(unlit.pigment, Mixture):
+        if data.get("watercolour") not in (None, False):
+            raise _fail("the watercolour look takes pigments ({\"pigment\": ...} or K and S), not library paints "
+                        f"({'spectral' if spectral else 'mixed'} glazes render with the plain model)", file,
+                        "watercolour")  # fmt: skip
+    return wash, unlit
+
+
+def _ground(spec: dict, file: Any, base: Path, cache: dict, glazes: tuple[_Glaze, _Glaze]) -> tuple[np.ndarray, Observation]:
+    """`{"ground": NAME}` (from the glazes' library) or `{"library": FILE, "ground": NAME}`."""
+    _check_keys(spec, {"library", "ground"}, file, "paper.")
+    if "library" in spec:
+        lib, _ = _load_library(spec["library"], file, "paper.library", base, cache)
+        source = spec["library"]
+    else:
+        g = next((g for g in glazes if g.library is not None), None)
+        if g is None:
+            raise _fail('needs "library" (the glazes are not library pigments)', file, "paper")
+        lib, source = g.library, g.source
+    name = spec.get("ground")
+    if not isinstance(name, str) or not name:
+        raise _fail(f"must name a ground of {source} ({', '.join(lib.grounds)})", file, "paper.ground")
+    grounds = {k.lower(): v for k, v in lib.grounds.items()}
+    if name.lower() not in grounds:
+        raise _fail(f"no ground {name!r} in {source} (it has {', '.join(lib.grounds)})", file, "paper.ground")
+    return np.asarray(grounds[name.lower()], np.float64), lib.observation
+
+
+def _parse_paper(data: dict, file: Any, base: Path, cache: dict, glazes: tuple[_Glaze, _Glaze]) -> np.ndarray:
+    """The paper on the glazes' bands: a list, a library ground, or the default."""
+    obs = glazes[0].observation
+    spec = data.get("paper")
+    if spec is None and obs is not None:
+        lib = glazes[0].library
+        if "paper" not in {k.lower() for k in lib.grounds}:
+            raise _fail(f'missing key: a spectral scene\'s paper is a ground of its library, {{"ground": NAME}} '
+                        f"({glazes[0].source} has {', '.join(lib.grounds)})", file, "paper")  # fmt: skip
+        spec = {"ground": "paper"}
+    if isinstance(spec, dict):
+        values, seen = _ground(spec, file, base, cache, glazes)
+        if obs is None:  # a 3-channel scene over a measured ground: its colour
+            return np.clip(np.asarray(seen.linear_srgb(values), np.float64), 0, 1)
+        if seen.describe() != obs.describe():
+            raise _fail(f"{spec.get('library')} is seen on other bands than the glazes", file, "paper.library")
+        return values
+    if obs is None:
+        paper = _vec3(data, "paper", file, "paper", default=DEFAULT_PAPER, nonneg=True)
+        if np.any(paper > 1):
+            raise _fail(f"is a reflectance and must be within [0, 1], got {paper.tolist()}", file, "paper")
+        return paper
+    n = len(obs.bands)
+    if not isinstance(spec, list) or len(spec) != n or not all(finite_number(v) and v >= 0 for v in spec):
+        raise _fail(f'must be {{"ground": NAME}} or a list of {n} reflectances >= 0 (one per band of the glazes\' '
+                    "library)", file, "paper")  # fmt: skip
+    return np.asarray([check_float32(v, file=file, field="paper") for v in spec], np.float64)
+
+
 def _parse_size(data: dict, file: str | os.PathLike | None, size: tuple[int, int] | None) -> tuple[int, int]:
     """The image's (width, height): `size` (from --size) over the file's `image` object, checked."""
     image = _object(data, "image", file, required=False)
@@ -335,17 +505,13 @@ def parse_scene(
     backfaces = data.get("backfaces", "auto")
     if backfaces not in BACKFACE_MODES:
         raise _fail(f"must be one of {', '.join(BACKFACE_MODES)}, got {backfaces!r}", file, "backfaces")
-    for key in ("wash", "unlit"):
-        if key not in data:
-            raise _fail("missing key", file, key)
-    wash = _pigment(data["wash"], "wash", file, base)
-    unlit = _pigment(data["unlit"], "unlit", file, base)
-    paper = _vec3(data, "paper", file, "paper", default=DEFAULT_PAPER, nonneg=True)
-    if np.any(paper > 1):
-        raise _fail(f"is a reflectance and must be within [0, 1], got {paper.tolist()}", file, "paper")
+    libraries: dict = {}
+    glazes = _parse_glazes(data, file, base, libraries)
+    paper = _parse_paper(data, file, base, libraries, glazes)
     consts = _parse_constants(data, file)
 
-    params = Params(wash=wash, unlit=unlit, paper=paper, light=direction, **consts)
+    params = Params(wash=glazes[0].pigment, unlit=glazes[1].pigment, paper=paper, light=direction, **consts,
+                    observation=glazes[0].observation)  # fmt: skip
     look = parse_watercolour(
         data.get("watercolour"), file=file, base=base, mesh=mesh, params=params,
         pigment=lambda spec, key: _pigment(spec, key, file, base),
@@ -429,13 +595,20 @@ def scene_to_dict(scene: Scene, params: Params | None = None, *, relative_to: st
     out["paper"] = _floats(p.paper)
     for key in ("wash", "unlit"):
         pig = getattr(p, key)
-        out[key] = {"name": pig.name, "K": _floats(pig.K), "S": _floats(pig.S)}
+        if isinstance(pig, Mixture):  # library pigments: the library, named relative to the new file
+            out[key] = pig.describe(relative_to if relative_to is not None else _folder(scene))
+        else:
+            out[key] = {"name": pig.name, "K": _floats(pig.K), "S": _floats(pig.S)}
     for key in DEFAULT_CONSTANTS:
         out[key] = _floats(getattr(p, key))
     for k, v in out.items():
         if isinstance(v, float) and not math.isfinite(v):
             raise DiffwashError(f"is not finite ({v}); refusing to write the scene", field=k)
     return out
+
+
+def _folder(scene: Scene) -> str | None:
+    return None if scene.path is None else os.fspath(Path(scene.path).parent)
 
 
 def referenced_files(path: str | os.PathLike) -> list[Path]:
@@ -451,11 +624,10 @@ def referenced_files(path: str | os.PathLike) -> list[Path]:
         return []
     base = Path(path).parent
     found = [base / data["mesh"]] if isinstance(data.get("mesh"), str) and data["mesh"] else []
-    for key in ("wash", "unlit"):
+    for key in ("wash", "unlit", "paper"):
         spec = data.get(key)
-        ref = spec.get("pigment") if isinstance(spec, dict) else spec
-        if isinstance(ref, str) and ref and (base / ref).is_file():
-            found.append(base / ref)
+        refs = [spec.get("pigment"), spec.get("library")] if isinstance(spec, dict) else [spec]
+        found += [base / ref for ref in refs if isinstance(ref, str) and ref and (base / ref).is_file()]
     return found + watercolour_files(data.get("watercolour"), base)
 
 

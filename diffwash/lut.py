@@ -26,7 +26,8 @@ Two kinds of table:
   seed's texture that "yields a final pixel color";
 - `"rt"`: the reflectance `R` and transmittance `T` of the two glazes without
   the paper (`shading.glaze_layers`), the seed's suggested variant, so that a
-  shader can composite over any paper: `R + T^2 P / (1 - R P)`.
+  shader can composite over any paper: `R + T^2 P / (1 - R P)`. Three-channel
+  pigments only (spectral glazes composite per band, not per sRGB channel).
 
 Files (`save` / `load`): 16-bit sRGB PNG (`png16`, the default), 8-bit sRGB PNG
 (`png8`), linear float32 OpenEXR (`exr`) or linear float32 NumPy (`npy`), each
@@ -64,6 +65,7 @@ from jaxtyping import Array, ArrayLike, Float
 from . import shading
 from ._errors import DiffwashError
 from ._io import atomic_path, read_json
+from ._mixture import Mixture
 from ._scene import Scene, load_scene
 from ._version import __version__
 from .colorimetry import from_display, to_display
@@ -215,15 +217,19 @@ def _scalar(x: Any) -> float:
 
 def _meta(params: Params, source: str | None) -> dict:
     def pigment(p):
+        if isinstance(p, Mixture):  # library pigments: the library's file and the proportions
+            return {"name": p.name, **p.describe(), "library": Path(p.library).name if p.library else None}
         return {"name": p.name, "K": np.asarray(p.K, np.float64).tolist(), "S": np.asarray(p.S, np.float64).tolist()}
 
     meta = {
         "pigments": {"wash": pigment(params.wash), "unlit": pigment(params.unlit)},
-        "paper": np.asarray(params.paper, np.float64).tolist(),
+        "paper": np.asarray(shading.paper_colour(params), np.float64).tolist(),
         "constants": {k: _scalar(getattr(params, k)) for k in DEFAULT_CONSTANTS},
         "light": {"direction": np.asarray(params.light, np.float64).tolist()},
         "diffwash_version": __version__,
     }
+    if params.observation is not None:
+        meta["observation"] = params.observation.describe()
     if source is not None:
         meta["scene"] = Path(source).name
     return meta
@@ -231,7 +237,7 @@ def _meta(params: Params, source: str | None) -> dict:
 
 @jax.jit
 def _bake_colour(params: Params, wash: Array, unlit: Array) -> Array:
-    return shading.glaze(params, wash, unlit)
+    return shading.colour(params, wash, unlit)
 
 
 @jax.jit
@@ -269,6 +275,10 @@ def bake(
     if kind not in KINDS:
         raise DiffwashError(f"must be one of {', '.join(KINDS)}, got {kind!r}", field="kind")
     params, source = _params_of(scene_or_params)
+    if kind == "rt" and params.observation is not None:
+        raise DiffwashError("an R/T table is composited over the paper per sRGB channel in the shader, which "
+                            "spectral glazes do not allow (their colour is not a product of channels): bake the "
+                            "colour table", field="kind")  # fmt: skip
     wash_max, unlit_max = _scalar(params.wash_max), _scalar(params.unlit_max)
     for name, v in (("wash_max", wash_max), ("unlit_max", unlit_max)):
         if not np.isfinite(v) or v < 0:
@@ -278,7 +288,8 @@ def bake(
     unlit = (np.arange(m) / (m - 1) * unlit_max).astype(dtype)
     # Rows in blocks of a fixed shape (the last one padded): one compilation per
     # table width, bounded memory for 4096^2 tables.
-    rows = max(1, min(m, (1 << 18) // n))
+    bands = len(np.atleast_1d(np.asarray(params.paper)))
+    rows = max(1, min(m, (1 << 18) * 3 // (n * max(bands, 3))))  # about 2^18 texels x 3 bands per block
     evaluate = _bake_colour if kind == "colour" else _bake_rt
     canonical = shading.canonical(params)  # one compiled program for any pigment names
     channels = 3 if kind == "colour" else 6
@@ -520,7 +531,7 @@ def load(path: str | os.PathLike) -> Lut:
         values = from_display(values)
     elif head["encoding"] != "linear":
         raise DiffwashError(f"must be srgb or linear, got {head['encoding']!r}", file=side, field="encoding")
-    meta = {k: head[k] for k in ("pigments", "paper", "constants", "light", "diffwash_version", "scene") if k in head}
+    meta = {k: head[k] for k in ("pigments", "paper", "constants", "light", "diffwash_version", "scene", "observation") if k in head}
     return Lut(
         values=np.asarray(values, np.float32),
         wash_max=float(head["wash_max"]),

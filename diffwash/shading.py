@@ -32,8 +32,10 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from . import km
+from ._errors import DiffwashError
 from ._xp import namespace, shader_function
 from .pigments import Pigment, unlabelled
+from .spectral import Observation
 
 __all__ = [
     "Params",
@@ -43,6 +45,10 @@ __all__ = [
     "thicknesses",
     "glaze",
     "glaze_layers",
+    "colour",
+    "paper_colour",
+    "linear_srgb",
+    "check_per_channel",
     "canonical",
     "CONSTANTS",
     "DEFAULT_CONSTANTS",
@@ -79,12 +85,18 @@ class Params(eqx.Module):
 
     **Fields:**
 
-    - `wash`, `unlit`: the two glazes' pigments (`K`, `S`, shape (3,)).
-    - `paper`: linear reflectance of the paper, shape (3,).
+    - `wash`, `unlit`: the two glazes' pigments: `Pigment`s (`K`, `S`, shape
+      (3,)), or spectral paint (`diffwash.Mixture`: library pigments
+      mixed, `K` and `S` of shape (B,) on the library's bands).
+    - `paper`: reflectance of the paper on the glazes' bands: shape (3,)
+      (linear sRGB), or (B,).
     - `light`: direction towards the light, world space, shape (3,) (any length;
       the renderer normalises it).
     - `k_wash`, `k_specular`, `shininess`, `k_unlit`, `gain`, `bias`,
       `wash_reduction`: the model's scalar constants.
+    - `observation`: how the bands are seen (`diffwash.spectral.Observation`,
+      reflectance to linear sRGB) when the glazes are spectral; None when
+      they are the three linear sRGB channels.
     """
 
     wash: Pigment
@@ -98,6 +110,7 @@ class Params(eqx.Module):
     gain: Scalar = DEFAULT_CONSTANTS["gain"]
     bias: Scalar = DEFAULT_CONSTANTS["bias"]
     wash_reduction: Scalar = DEFAULT_CONSTANTS["wash_reduction"]
+    observation: Observation | None = None
 
     @property
     def wash_max(self) -> Scalar:
@@ -235,3 +248,30 @@ def glaze(params: Params, wash: Float[ArrayLike, "*b"], unlit: Float[ArrayLike, 
     """
     R, T = glaze_layers(params, wash, unlit)
     return km.over(R, T, params.paper)
+
+
+def linear_srgb(params: Params, R: Float[ArrayLike, "*b C"]) -> Float[ArrayLike, "*b 3"]:
+    """Reflectance on the glazes' bands as linear sRGB: through `params.observation`, or `R` itself when
+    the bands are the three sRGB channels."""
+    return R if params.observation is None else params.observation.linear_srgb(R)
+
+
+def colour(params: Params, wash: Float[ArrayLike, "*b"], unlit: Float[ArrayLike, "*b"]) -> Float[Array, "*b 3"]:
+    """Linear sRGB of the glazes over the paper: `glaze` (per band), seen through the observation.
+
+    What the renderer draws and the LUT holds; for three-channel pigments it is `glaze` itself.
+    """
+    return linear_srgb(params, glaze(params, wash, unlit))
+
+
+def paper_colour(params: Params) -> Float[ArrayLike, " 3"]:
+    """Linear sRGB of the bare paper (what uncovered pixels show)."""
+    return linear_srgb(params, params.paper)
+
+
+def check_per_channel(params: Params, what: str) -> None:
+    """Refuse `what` (something that evaluates Kubelka-Munk per sRGB channel) for spectral glazes."""
+    if params.observation is not None:
+        raise DiffwashError(f"{what} evaluates Kubelka-Munk per sRGB channel, but this scene's glazes are "
+                            f"spectral ({len(params.observation.bands)} bands): use the baked LUT, which holds "
+                            "their colour", field="colour")  # fmt: skip

@@ -130,7 +130,7 @@ def viewer_html(
         "float_uniforms": _FLOATS,
         "vec3_uniforms": _VEC3S,
         "live_constants": _live_constants(u),
-        "background": to_display(np.asarray(p.paper, np.float64)).tolist(),
+        "background": to_display(np.asarray(u["paper"], np.float64)).tolist(),  # the paper as linear sRGB
         "pigments": {"wash": p.wash.name, "unlit": p.unlit.name},
         "version": __version__,
         "look": None if look is None else _look_config(look, centre),

@@ -33,7 +33,7 @@ import trimesh
 from . import lut as _lut
 from ._errors import DiffwashError
 from ._io import atomic_folder
-from ._look_export import LOOK_FOLDER, LookExport, look_export, write_look
+from ._look_export import LOOK_FOLDER, LookExport, look_export, retarget, write_look
 from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
 from ._scene import Mesh, Scene, load_scene, scene_to_dict
 from ._viewer import viewer_html
@@ -113,6 +113,9 @@ def export(
     - `kind`: `"colour"` or `"rt"` (R and T, composited over a `paper` uniform).
     - `overwrite`: replace an existing export in `folder`.
 
+    A scene with a watercolour look also gets `look/` (its passes for
+    `target`, `diffwash._look_export`), and the viewer draws the look.
+
     **Returns:**
 
     The paths written, in `folder`.
@@ -138,7 +141,7 @@ def export(
     look = None if scene.watercolour is None else look_export(scene, params, target=target)
     with atomic_folder(folder) as tmp:
         written = _write_plain(tmp, scene, params, table, target=target, fmt=fmt, kind=kind)
-        viewer_look = look if look is None or target == "webgl2" else look_export(scene, params, target="webgl2")
+        viewer_look = look if look is None or target == "webgl2" else retarget(look, "webgl2")
         written += _write_scene(tmp, folder, scene, params, table, look, viewer_look)
     return [folder / p.relative_to(tmp) for p in written]
 

@@ -22,6 +22,7 @@ OpenGL preview) takes them, so the three agree with `diffwash.render`.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +38,7 @@ from .look._look import glsl_final_pass, look_uniforms
 from .look._mix import bake_mix_lut, glaze_mix
 from .look._shadow import SHADOW_MAP_SIZE, glsl_depth_pass, light_view_projection, normal_offset
 
-__all__ = ["LookExport", "look_export", "write_look", "LOOK_FOLDER", "LOOK_ATTRIBUTES"]
+__all__ = ["LookExport", "look_export", "retarget", "write_look", "LOOK_FOLDER", "LOOK_ATTRIBUTES"]
 
 #: The folder of an export that holds the look's passes.
 LOOK_FOLDER = "look"
@@ -214,6 +215,12 @@ def look_export(scene: Any, params: Any = None, *, target: str = "webgl2") -> Lo
     )
 
 
+def retarget(look: LookExport, target: str) -> LookExport:
+    """The same passes with their shaders for another target (the textures and uniforms do not change)."""
+    height = look.graph["size"][1]
+    return dataclasses.replace(look, target=target, shaders=_shaders(target, height, "tam0" in look.textures))
+
+
 def write_look(folder: Path, look: LookExport) -> list[Path]:
     """Write the look's shaders, textures (`.npy`), `passes.json`, `uniforms.json` and `README.md` into `folder`."""
     folder.mkdir()
@@ -289,7 +296,9 @@ reduced grid and the paper tile are in pixels (export again for another size).
 |---|---|---|---|---|
 {targets}
 
-Float colour targets need `EXT_color_buffer_float` in WebGL2. All targets clamp to edge.
+Float colour targets need `EXT_color_buffer_float` in WebGL2; where 32-bit float textures cannot be
+filtered (no `OES_texture_float_linear`), make the linearly filtered edge targets RGBA16F. All
+targets clamp to edge.
 
 ## Input textures
 

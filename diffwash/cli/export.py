@@ -1,10 +1,14 @@
 """Export a scene for real-time use: the LUT and its sidecar, vertex and fragment shaders for
 per-vertex and per-pixel thickness, the mesh as GLB, and viewer.html, a self-contained WebGL2
 page showing the mesh with those shaders (orbit with the mouse, move the light, toggle
-per-vertex/per-pixel). The folder is written whole or not at all.
+per-vertex/per-pixel). For a scene with a "watercolour" object it also writes look/, the look's
+passes (shaders, textures, passes.json, uniforms.json, README.md), which the viewer draws. The
+folder is written whole or not at all.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 from .. import export, load_scene, lut, referenced_files, shaders
 from .. import io as dio
@@ -31,6 +35,8 @@ def run(args) -> int:
     written = export(
         scene, args.output, target=args.target, size=size, fmt=args.format, kind="rt" if args.rt else "colour", overwrite=args.overwrite
     )
-    print(f"wrote {args.output}/: {', '.join(w.name for w in written)}")
+    top = [w.name for w in written if w.parent == Path(args.output)]
+    look = [w for w in written if w.parent != Path(args.output)]
+    print(f"wrote {args.output}/: {', '.join(top)}" + (f", look/ ({len(look)} files: the watercolour look's passes, see look/README.md)" if look else ""))
     print(f"open {args.output}/viewer.html in a browser with WebGL2")
     return 0

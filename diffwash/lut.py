@@ -278,7 +278,7 @@ def bake(
     if kind == "rt" and params.observation is not None:
         raise DiffwashError("an R/T table is composited over the paper per sRGB channel in the shader, which "
                             "spectral glazes do not allow (their colour is not a product of channels): bake the "
-                            "colour table", field="kind")  # fmt: skip
+                            "colour table", file=source, field="kind (--rt)")  # fmt: skip
     wash_max, unlit_max = _scalar(params.wash_max), _scalar(params.unlit_max)
     for name, v in (("wash_max", wash_max), ("unlit_max", unlit_max)):
         if not np.isfinite(v) or v < 0:

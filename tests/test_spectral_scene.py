@@ -294,3 +294,10 @@ def test_bad_input_is_one_line_naming_the_scene_and_the_key(cli, tmp_path, case)
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert f"scene.json: {field}: " in err and message in err, err
     assert not (tmp_path / "out.png").exists()
+
+
+def test_rt_bake_of_a_spectral_scene_is_refused(cli, tmp_path):
+    (tmp_path / "scene.json").write_text(json.dumps(scene_dict(16)))
+    code, out, err = cli("bake", "scene.json", "-o", "lut.png", "--rt")
+    assert code == 2 and err.count("\n") == 1 and "scene.json: kind (--rt): an R/T table" in err, err
+    assert not list(tmp_path.glob("lut*"))

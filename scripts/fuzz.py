@@ -208,6 +208,8 @@ def prepare(folder: Path) -> None:
     (folder / "library.json").write_text(json.dumps({"pigments": [{"name": "A", "K": [1, 1, 1], "S": [0, 0, 0]},
                                                                   {"name": "a", "K": [1, 1, 1], "S": [0, 0, 0]}]}))  # fmt: skip
     (folder / "garbage.obj").write_bytes(b"v 1 2\nf 1 2 3 4 5\n")
+    # A spectral pigment library (fit-swatch --table) for library glazes and mixtures.
+    (folder / "paints.json").write_bytes((Path(__file__).resolve().parent.parent / "data" / "libraries" / "ntu-four.json").read_bytes())
 
 
 _PIGMENT_REFS = ("Quinacridone Rose", "french ultramarine", "pigment.json", "library.json", "missing.json", "Nope")
@@ -219,11 +221,13 @@ def scene_docs(draw: Any) -> dict:
         return [draw(st.floats(lo, hi)) for _ in range(3)]
 
     def pigment() -> Any:
-        kind = draw(st.integers(0, 2))
+        kind = draw(st.integers(0, 3))
         if kind == 0:
             return {"pigment": draw(st.sampled_from(_PIGMENT_REFS))}
         if kind == 1:
             return draw(st.sampled_from(_PIGMENT_REFS))
+        if kind == 3:
+            return _library_glaze(draw)
         return {"K": _rgb(draw), "S": _rgb(draw)}
 
     doc = {
@@ -237,8 +241,25 @@ def scene_docs(draw: Any) -> dict:
     for key in draw(st.sets(st.sampled_from(["k_wash", "k_specular", "shininess", "k_unlit", "gain", "bias",
                                              "wash_reduction", "paper", "shading", "backfaces"]))):  # fmt: skip
         doc[key] = draw(st.floats(0.01, 0.99)) if key != "paper" else _rgb(draw)
+    if "paper" in doc and draw(st.booleans()):  # a library's ground, or a reflectance per band
+        doc["paper"] = draw(st.sampled_from([{"ground": "paper"}, {"ground": "canvas"}, {"library": "paints.json",
+                                             "ground": "Paper"}, [0.8] * 41, [0.8] * 40, {"ground": 3}]))  # fmt: skip
     if draw(st.booleans()):
         doc["watercolour"] = _watercolour_doc(draw)
+    return doc
+
+
+def _library_glaze(draw: Any) -> dict:
+    """A glaze of library pigments: a known or unknown library, one pigment or a mix, an amount or none."""
+    names = st.sampled_from(["P1", "p4", "P8", "P10", "P2", ""])
+    doc: dict = {"library": draw(st.sampled_from(["paints.json", "paints.json", "pigment.json", "missing.json", 3]))}
+    if draw(st.booleans()):
+        doc["pigment"] = draw(names)
+    else:
+        doc["mix"] = draw(st.dictionaries(names, st.one_of(st.floats(-0.5, 1.5), st.just(0.5), st.text(max_size=2)),
+                                          max_size=3))  # fmt: skip
+    if draw(st.booleans()):
+        doc["amount"] = draw(st.one_of(st.floats(-0.01, 1e3), st.just(0.0)))
     return doc
 
 

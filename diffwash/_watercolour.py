@@ -27,6 +27,7 @@ principal curvature); Praun et al. 2001 (tonal art maps); Montesdeoca et al.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any, Callable
 
@@ -74,7 +75,8 @@ class Watercolour(eqx.Module):
     - `strokes`: the brush-stroke layer per vertex `(V,)`, or None.
     - `mix`: the pigment mix per vertex `(V,)` in [0, 1] (differentiable), or None.
     - `wash_b`, `unlit_b`: the pigments at mix 1, or None.
-    - `tam`: the tonal art map's levels, or None (no hatching).
+    - `tam`: the tonal art map's levels, or None (no hatching); `tam_packed`:
+      the same as one table (`look.pack_tam`), as the renderer reads it.
     - `pigments`: the `look.Pigments` (granularity, staining, density on this paper).
     - `shadow`: whether the unlit glaze thickens in the object's own shadow.
     - `hatch_scale`: texels of the map's finest level per object unit.
@@ -92,6 +94,7 @@ class Watercolour(eqx.Module):
     shadow: bool = eqx.field(static=True, default=True)
     hatch_scale: float = eqx.field(static=True, default=190.0)
     effects: tuple[str, ...] = eqx.field(static=True, default=tuple(WATERCOLOUR_KEYS))
+    tam_packed: Any = None
 
 
 def _fail(msg: str, file: Any, field: str) -> DiffwashError:
@@ -256,6 +259,7 @@ def parse_watercolour(
         shadow=eff["shadow"] is not None,
         hatch_scale=float(scale),
         effects=tuple(k for k, v in eff.items() if v is not None),
+        tam_packed=None if tam is None else wl.pack_tam(tam),
     )
 
 
@@ -315,9 +319,9 @@ def watercolour_files(spec: Any, base: Path) -> list[Path]:
 
 
 def _tile(screen: Array, height: int, width: int, dtype) -> Array:
-    rows = np.arange(height) % screen.shape[0]
-    cols = np.arange(width) % screen.shape[1]
-    return jnp.asarray(screen, dtype)[rows][:, cols]
+    """The tile repeated over the image (copies, not a gather)."""
+    reps = (-(-height // screen.shape[0]), -(-width // screen.shape[1])) + (1,) * (screen.ndim - 2)
+    return jnp.tile(jnp.asarray(screen, dtype), reps)[:height, :width]
 
 
 def _points(surf: Any, clip, vertices, faces, normals, vis, *, width, height) -> tuple[Array, Array]:
@@ -358,8 +362,10 @@ def look_image(
     if wc.tam is not None:
         eye = jnp.asarray(camera.eye, dtype)
         fwd = shading.safe_normalize(jnp.asarray(camera.target, dtype) - eye)
-        pixel = jnp.sum((P - eye) * fwd, axis=-1) * (2 * jnp.tan(jnp.deg2rad(camera.fov_y) / 2) / height)
-        hatch = wl.hatch_samples(wc.tam, P, N, pixel, wc.hatch_scale)
+        d = P - eye
+        pixel = (d[:, 0] * fwd[0] + d[:, 1] * fwd[1] + d[:, 2] * fwd[2]) * (2 * jnp.tan(jnp.deg2rad(camera.fov_y) / 2) / height)
+        tam = wc.tam if wc.tam_packed is None else wc.tam_packed
+        hatch = functools.partial(wl.hatch_ink_at, tam, P, N, pixel, wc.hatch_scale)  # reads only the 2 tones used
     w, u = wl.surface_terms(wash, unlit, look, unlit_max=params.k_unlit, shadow=sh, hatch=hatch)
     # Barriers between the stages: XLA would otherwise fuse a stage's gathers into each of its consumers
     # and compute them again there (the hatching several times per pixel).

@@ -38,6 +38,9 @@ from ._hatching import glsl_hatching as glsl_hatching
 from ._hatching import hatch_ink as hatch_ink
 from ._hatching import hatch_lod as hatch_lod
 from ._hatching import hatch_samples as hatch_samples
+from ._hatching import hatch_ink_at as hatch_ink_at
+from ._hatching import pack_tam as pack_tam
+from ._hatching import PackedMap as PackedMap
 from ._hatching import sample_tam as sample_tam
 from ._hatching import tonal_art_map as tonal_art_map
 from ._hatching import tone_weights as tone_weights

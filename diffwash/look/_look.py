@@ -36,6 +36,7 @@ shader over the G-buffer, `glsl_surface` step 1 for the geometry pass;
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import equinox as eqx
@@ -140,7 +141,7 @@ def surface_terms(
     *,
     unlit_max: Float[ArrayLike, ""],
     shadow: Float[ArrayLike, "*b"] | None = None,
-    hatch: Float[ArrayLike, "*b T"] | None = None,
+    hatch: Float[ArrayLike, "*b T"] | Callable[[Array], Array] | None = None,
 ) -> tuple[Float[Array, "*b"], Float[Array, "*b"]]:
     r"""Shadow and hatching on the model's thicknesses at shaded points.
 
@@ -149,8 +150,9 @@ def surface_terms(
 
     with `s` the shadow factor (`_shadow.shadow`) and `ink(tau)` the tonal
     art map's ink at tone `tau` (`hatch`: the map's samples of every tone at
-    the point, `_hatching.hatch_samples`). Each term is skipped when its input
-    is None; the wash is unchanged.
+    the point, `_hatching.hatch_samples`; or a function `tau -> ink`, e.g.
+    `_hatching.hatch_ink_at`, which reads only the two tones it needs). Each
+    term is skipped when its input is None; the wash is unchanged.
 
     **Arguments:**
 
@@ -165,7 +167,8 @@ def surface_terms(
     if hatch is not None:
         ok = unlit_max > 0
         tau = jnp.where(ok, u / jnp.where(ok, unlit_max, 1.0), 0.0)
-        u = u + look.hatching * (unlit_max * hatch_ink(hatch, tau) - u)
+        ink = hatch(tau) if callable(hatch) else hatch_ink(hatch, tau)
+        u = u + look.hatching * (unlit_max * ink - u)
     return w, u
 
 

@@ -45,6 +45,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float, Int
 
+from ._xla import apart
+
 __all__ = [
     "light_view_projection",
     "light_clip",
@@ -159,19 +161,23 @@ def light_depth(
     tri_id = jnp.asarray(tri_id)
     rows, cols = tri_id.shape
     ndc = _project(jnp.asarray(vertices), jnp.asarray(light_vp))
-    f = jnp.asarray(faces)[jnp.maximum(tri_id, 0)]  # (S, S, 3)
-    p = ndc[f]  # (S, S, 3 corners, 3)
+    # Per face, the depth as a plane z = z0 + zx x + zy y over the light's NDC (the barycentric
+    # interpolation written out), so that each texel reads 3 numbers of its face instead of its 3 corners.
+    f = jnp.asarray(faces)
+    a, b, c = ndc[f[:, 0]], ndc[f[:, 1]], ndc[f[:, 2]]
+    area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    ok = area != 0
+    safe = jnp.where(ok, area, 1.0)
+    db, dc = (b[:, 2] - a[:, 2]) / safe, (c[:, 2] - a[:, 2]) / safe
+    zx = db * (c[:, 1] - a[:, 1]) - dc * (b[:, 1] - a[:, 1])
+    zy = dc * (b[:, 0] - a[:, 0]) - db * (c[:, 0] - a[:, 0])
+    z0 = a[:, 2] - zx * a[:, 0] - zy * a[:, 1]
+    planes = jnp.stack([z0, zx, zy, ok.astype(z0.dtype)], axis=1)
+    q = apart(lambda planes, tri: planes[jnp.maximum(tri, 0)], planes, tri_id)  # (S, S, 4)
     x = (jnp.arange(cols) + 0.5) / cols * 2 - 1
     y = 1 - (jnp.arange(rows) + 0.5) / rows * 2
-    px, py = x[None, :], y[:, None]
-    a, b, c = p[..., 0, :], p[..., 1, :], p[..., 2, :]
-    area = (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (c[..., 0] - a[..., 0]) * (b[..., 1] - a[..., 1])
-    wb = (px - a[..., 0]) * (c[..., 1] - a[..., 1]) - (c[..., 0] - a[..., 0]) * (py - a[..., 1])
-    wc = (b[..., 0] - a[..., 0]) * (py - a[..., 1]) - (px - a[..., 0]) * (b[..., 1] - a[..., 1])
-    ok = (tri_id >= 0) & (area != 0)
-    safe = jnp.where(ok, area, 1.0)
-    z = a[..., 2] + (wb / safe) * (b[..., 2] - a[..., 2]) + (wc / safe) * (c[..., 2] - a[..., 2])
-    return jnp.where(ok, jnp.clip((z + 1) / 2, 0.0, 1.0), 1.0)
+    z = q[..., 0] + q[..., 1] * x[None, :] + q[..., 2] * y[:, None]
+    return jnp.where((tri_id >= 0) & (q[..., 3] > 0), jnp.clip((z + 1) / 2, 0.0, 1.0), 1.0)
 
 
 def _filter(t: Array, n: int, taps: int) -> tuple[list[Array], list[Array]]:
@@ -238,11 +244,15 @@ def shadow(
     d = (ndc[..., 2] + 1) / 2 - bias
     cx, wx = _filter((ndc[..., 0] + 1) / 2 * cols, cols, taps)  # texel centres at j + 0.5
     cy, wy = _filter((1 - ndc[..., 1]) / 2 * rows, rows, taps)
-    lit = 0.0
-    for i in range(taps):
-        for j in range(taps):
-            lit = lit + wy[i] * wx[j] * (d <= depth[cy[i], cx[j]]).astype(d.dtype)
-    return 1 - lit
+
+    def reads(depth, d, cx, cy, wx, wy):  # apart: XLA would recompute the projection at every read
+        lit = 0.0
+        for i in range(taps):
+            for j in range(taps):
+                lit = lit + wy[i] * wx[j] * (d <= depth[cy[i], cx[j]]).astype(d.dtype)
+        return 1 - lit
+
+    return apart(reads, depth, d, cx, cy, wx, wy)
 
 
 def glsl_shadow(taps: int = SHADOW_TAPS) -> str:

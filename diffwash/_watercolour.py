@@ -38,6 +38,7 @@ import numpy as np
 from jaxtyping import Array
 
 from . import look as wl
+from .look._xla import apart
 from . import shading
 from ._errors import DiffwashError
 from ._interpolate import barycentrics, interpolate
@@ -384,11 +385,13 @@ def look_image(
     rows, cols = screen.shape[:2]
     p = jnp.minimum(pixels, n - 1)
     at = screen[(p // width) % rows, (p % width) % cols]  # the screen tile at the covered pixels
-    thick = jax.lax.optimization_barrier(wl.image_terms(jnp.stack([w, u, m, b], 1), at, look, wc.pigments, mean=mean))
+    terms = lambda g, at, mean, look: wl.image_terms(g, at, look, wc.pigments, mean=mean)  # noqa: E731
+    thick = apart(terms, jnp.stack([w, u, m, b], 1), at, mean, look)
+    # The glaze apart: XLA splits Kubelka-Munk into several loops and would recompute the image terms in each.
     if wc.mix is None:
-        rgb = shading.glaze(params, thick[:, 0], thick[:, 1])
+        rgb = apart(lambda params, t: shading.glaze(params, t[:, 0], t[:, 1]), params, thick)
     else:
-        rgb = wl.glaze_mix(params, wc.wash_b, wc.unlit_b, thick[:, 0], thick[:, 1], m)
+        rgb = apart(lambda params, wb, ub, t, m: wl.glaze_mix(params, wb, ub, t[:, 0], t[:, 1], m), params, wc.wash_b, wc.unlit_b, thick, m)
     image = jnp.broadcast_to(jnp.asarray(params.paper, dtype), (n, 3)).at[pixels].set(rgb, mode="drop", unique_indices=True)
     shade = _tile(screen[..., 1:2], height, width, dtype)[..., 0]
     return wl.paper_shading(image.reshape(height, width, 3), shade, look.paper_shading).reshape(n, 3)

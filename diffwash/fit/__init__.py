@@ -10,7 +10,8 @@ Three fits, each a thin layer of data handling over optimistix least squares:
 - `fit_table(csv)`: every pigment of a table of measured colours in one call (`jax.vmap`, or a loop);
   `diffwash fit-swatch --table MEASUREMENTS.csv`.
 - `fit_image(targets, scenes, fit=...)`: named scene parameters (K, S, gain, bias, thickness
-  constants, shininess, light, paper) from target images; `diffwash fit-image`.
+  constants, shininess, light, paper, the watercolour look's `watercolour.<effect>.<key>`) from
+  target images; `diffwash fit-image`.
 
 Each result has a one-page report figure: `save_swatch_report`, `save_table_report`, `save_image_report`
 (what the CLI's `--report` writes).

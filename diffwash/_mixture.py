@@ -6,7 +6,8 @@ A scene's `wash` or `unlit` glaze may name pigments of a library written by
 pigments it uses (K and S per band, amount law, mixing weight), their
 proportions $p_i$ in the paint, and the amount of paint $A$ a glaze of
 thickness 1 holds. Its coefficients per unit of the shading model's thickness
-are Duncan's sums of `diffwash.mixing.optical_depths`,
+are Duncan's sums of `diffwash.mixing.optical_depths` (with the library's
+pair terms for a pair it measured mixed, `diffwash.mixing.PairTerms`),
 
 $$ K = \sum_i c_i\, K_i\, t_i(A), \qquad S = \sum_i c_i\, S_i\, t_i(A), \qquad
    c_i = \frac{w_i p_i}{\sum_j w_j p_j}, $$
@@ -73,8 +74,7 @@ class Mixture(eqx.Module):
         total = jnp.sum(p)
         ok = total > 0
         amounts = jnp.where(ok, p / jnp.where(ok, total, 1), 0) * self.amount
-        pal = self.palette
-        return mixing.optical_depths(pal.K, pal.S, amounts, pal.law, pal.weights)
+        return self.palette.optical_depths(amounts)
 
     @property
     def K(self) -> Float[Array, " b"]:
@@ -142,6 +142,7 @@ def mixture(
         K=f64(pal.K)[idx], S=f64(pal.S)[idx], law=mixing.AmountLaw(gamma=gamma[idx], reference=pal.law.reference),
         weights=np.broadcast_to(f64(pal.weights), (len(library.names),))[idx],
         names=tuple(library.names[i] for i in idx), wavelengths=pal.wavelengths,
+        pairs=None if pal.pairs is None else pal.pairs.subset(idx),
     )  # fmt: skip
     a = pal.law.reference if amount is None else amount
     return Mixture(palette=palette, proportions=f64(list(proportions.values())), amount=np.float64(a),

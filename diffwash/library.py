@@ -134,7 +134,7 @@ class Library:
                 raise DiffwashError(f"no ground {g!r} in the library (it has {', '.join(self.grounds)})", file=file,
                                     field=where)  # fmt: skip
             rows.append(v)
-        return np.asarray(rows, np.float64).reshape(len(rows), -1)
+        return np.asarray(rows, np.float64).reshape(len(rows), len(self.observation.bands))
 
     def predict(self, pigments, amounts=None, grounds=None) -> Prediction:
         """Predict layers: a `Queries` (or a query CSV's path), or parallel lists of rows.
@@ -165,6 +165,8 @@ class Library:
         out = {"format": FORMAT, "version": VERSION, "observation": self.observation.describe(), "pigments": pigs,
                "grounds": {k: np.asarray(v, np.float64).tolist() for k, v in self.grounds.items()},
                "surface": {"k2": float(self.k2)}}  # fmt: skip
+        if p.pairs is not None:
+            out["pair_terms"] = p.pairs.to_dict(p.names)
         if self.fit is not None:
             out["fit"] = self.fit
         return out
@@ -217,6 +219,50 @@ def _observation(o: Any, path: Any) -> spectral.Observation:
         raise DiffwashError(e.problem, file=path, field=f"observation.{e.field or 'wavelengths'}") from None
 
 
+def _number(v: Any, path: Any, field: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+        raise DiffwashError("must be a finite number", file=path, field=field)
+    return float(v)
+
+
+def _pair_terms(d: Any, names: list[str], obs: spectral.Observation, path: Any) -> mixing.PairTerms:
+    """`PairTerms` from a library's `"pair_terms"` object (`{"basis": {...}, "pairs": [...]}`)."""
+    if not obs.spectral:
+        raise DiffwashError("pair terms need a spectral library (a band grid)", file=path, field="pair_terms")
+    basis = d.get("basis") if isinstance(d, dict) else None
+    if not isinstance(basis, dict) or not isinstance(d.get("pairs"), list):
+        raise DiffwashError("needs a basis and a list of pairs", file=path, field="pair_terms")
+    centres = tuple(float(c) for c in _vector(basis, "centres", None, path, "pair_terms.basis"))
+    width = _number(basis.get("width"), path, "pair_terms.basis.width")
+    if not centres or width <= 0:
+        raise DiffwashError("needs centres and a width > 0", file=path, field="pair_terms.basis")
+    index = {n: i for i, n in enumerate(names)}
+    members, cols = [], {k: [] for k in ("K_bumps", "S_bumps", "K_amount", "S_amount")}
+    for q, e in enumerate(d["pairs"]):
+        where = f"pair_terms.pairs[{q}]"
+        two = e.get("pigments") if isinstance(e, dict) else None
+        if not isinstance(two, list) or len(two) != 2 or any(n not in index for n in two) or two[0] == two[1]:
+            raise DiffwashError(f"pigments must name two different pigments of the library ({', '.join(names)})",
+                                file=path, field=f"{where}.pigments")  # fmt: skip
+        i, j = index[two[0]], index[two[1]]
+        members.append((min(i, j), max(i, j)))
+        for k in ("K_bumps", "S_bumps"):
+            v = np.asarray(e.get(k), np.float64) if isinstance(e.get(k), list) else np.empty(0)
+            if v.shape != (len(centres),) or not np.all(np.isfinite(v)):
+                raise DiffwashError(f"must be a list of {len(centres)} finite numbers", file=path, field=f"{where}.{k}")
+            cols[k].append(v)
+        for k in ("K_amount", "S_amount"):
+            cols[k].append(_number(e.get(k, 0.0), path, f"{where}.{k}"))
+    if len(set(members)) != len(members):
+        raise DiffwashError("names a pair twice", file=path, field="pair_terms.pairs")
+    q, n = len(members), len(centres)
+    arr = {k: jnp.asarray(np.asarray(v, np.float64).reshape((q, n) if k.endswith("bumps") else (q,)))
+           for k, v in cols.items()}  # fmt: skip
+    return mixing.PairTerms(members=tuple(members), k_bumps=arr["K_bumps"],
+                            s_bumps=arr["S_bumps"], k_amount=arr["K_amount"], s_amount=arr["S_amount"],
+                            centres=centres, width=width, wavelengths=obs.wavelengths)  # fmt: skip
+
+
 def library_from_dict(d: Any, path: Any = None) -> Library:
     """A `Library` from its JSON object (checked: one-line errors name the file and the field)."""
     if not isinstance(d, dict) or d.get("format") != FORMAT:
@@ -247,6 +293,9 @@ def library_from_dict(d: Any, path: Any = None) -> Library:
     palette = mixing.Palette(K=jnp.asarray(np.array(K)), S=jnp.asarray(np.array(S)),
                              law=mixing.AmountLaw(gamma=jnp.asarray(gam), reference=ref),
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
+    if d.get("pair_terms") is not None:
+        palette = eqx.tree_at(lambda p: p.pairs, palette, _pair_terms(d["pair_terms"], names, obs, path),
+                              is_leaf=lambda x: x is None)  # fmt: skip
     k2 = float((d.get("surface") or {}).get("k2", 0.0))
     return Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=d.get("fit"))
 

@@ -17,6 +17,11 @@ $$ Kx = \sum_i c_i\, K_i\, t_i(A), \qquad Sx = \sum_i c_i\, S_i\, t_i(A), \qquad
   much more (or less) pigment $i$ counts in a mixture than its amount alone
   suggests (its *tinting strength* in a mix).
 
+Pairs of pigments that were measured mixed may carry `PairTerms`: smooth
+spectral scales of $Kx$ and $Sx$ that vanish unless both are in the layer, fitted
+to its measurements (Duncan's sums miss by up to a few CIEDE2000 units on some
+measured pairs; docs/mixing.md).
+
 The law is applied to the layer's total amount: a paint mixed with itself is
 itself at the summed amount, whatever the weights (the measured self-mixtures
 of the NTU data are exactly that). A layer with nothing in it is the bare
@@ -48,6 +53,7 @@ from . import km
 
 __all__ = [
     "AmountLaw",
+    "PairTerms",
     "Palette",
     "concentrations",
     "optical_depths",
@@ -116,12 +122,89 @@ def concentrations(amounts: Float[ArrayLike, "*n p"], weights: Float[ArrayLike, 
     return jnp.where(ok, wa / jnp.where(ok, total, 1), 0)
 
 
+class PairTerms(eqx.Module):
+    r"""Corrections to Duncan's law for pairs of pigments that were measured mixed.
+
+    A layer's optical depths are scaled, for every pair $(i, j)$ of `members`,
+    by smooth spectra that vanish unless both pigments are in the layer:
+
+    $$ Kx \leftarrow Kx\, \exp \sum_{(i,j)} 4 v_i v_j \bigl(\phi(\lambda)^\top \kappa_{ij}
+       + \kappa^A_{ij} \log(A / a_0)\bigr), $$
+
+    and $Sx$ alike with $\sigma_{ij}$, $\sigma^A_{ij}$; $v$ are the volume
+    fractions, $A$ the layer's total amount, $a_0$ the amount law's reference
+    and $\phi$ Gaussian bumps over the band grid (`basis`). A pigment alone is
+    untouched; a 1:1 mixture of a pair gets the pair's whole correction; a
+    layer of three or more pigments gets each of its measured pairs' terms in
+    proportion to $v_i v_j$, so the model is smooth in the amounts. All terms 0 is
+    Duncan. Fitted per pair (`diffwash.fit`), they describe what a measured pair
+    did that its pigments alone do not, and say nothing of other pairs
+    (docs/mixing.md measures both).
+
+    **Fields:**
+
+    - `members`: the pairs, as pigment indices `(i, j)` with `i < j`, shape `(Q, 2)` (static).
+    - `k_bumps`, `s_bumps`: $\kappa$, $\sigma$, shape `(Q, n)`.
+    - `k_amount`, `s_amount`: $\kappa^A$, $\sigma^A$, shape `(Q,)`.
+    - `centres`, `width`: the bumps' centres and width (nm; static).
+    - `wavelengths`: the band grid the bumps are evaluated on (static).
+    """
+
+    members: tuple[tuple[int, int], ...] = eqx.field(static=True)
+    k_bumps: Float[Array, "q n"]
+    s_bumps: Float[Array, "q n"]
+    k_amount: Float[Array, " q"]
+    s_amount: Float[Array, " q"]
+    centres: tuple[float, ...] = eqx.field(static=True)
+    width: float = eqx.field(static=True)
+    wavelengths: tuple[float, ...] = eqx.field(static=True)
+
+    def basis(self) -> np.ndarray:
+        """The bumps on the band grid, shape (B, n)."""
+        wl, c = np.asarray(self.wavelengths)[:, None], np.asarray(self.centres)[None, :]
+        return np.exp(-0.5 * ((wl - c) / self.width) ** 2)
+
+    def scales(self, amounts: Float[Array, "*n p"], reference: float) -> tuple[Float[Array, "*n b"], Float[Array, "*n b"]]:
+        """The factors of $Kx$ and $Sx$ (the class docstring), shape `(..., B)`; 1 for a pigment alone."""
+        i, j = np.asarray(self.members, int).reshape(-1, 2).T
+        v = concentrations(amounts)
+        inter = 4 * v[..., i] * v[..., j]  # (..., Q)
+        total = jnp.sum(amounts, axis=-1, keepdims=True)
+        ok = total > 0
+        lt = jnp.where(ok, jnp.log(jnp.where(ok, total, 1) / reference), 0)
+        phi = jnp.asarray(self.basis(), amounts.dtype)
+        ck = (inter @ self.k_bumps) @ phi.T + (inter * lt) @ self.k_amount[:, None]
+        cs = (inter @ self.s_bumps) @ phi.T + (inter * lt) @ self.s_amount[:, None]
+        return jnp.exp(ck), jnp.exp(cs)
+
+    def subset(self, index: list[int]) -> PairTerms | None:
+        """The terms of the pairs among pigments `index` (a palette of those pigments, in that order), or None."""
+        where = {old: new for new, old in enumerate(index)}
+        keep = [q for q, (i, j) in enumerate(self.members) if i in where and j in where]
+        if not keep:
+            return None
+        k = np.asarray(keep)
+        return PairTerms(members=tuple(tuple(sorted((where[self.members[q][0]], where[self.members[q][1]])))
+                                       for q in keep),
+                         k_bumps=jnp.asarray(self.k_bumps)[k], s_bumps=jnp.asarray(self.s_bumps)[k],
+                         k_amount=jnp.asarray(self.k_amount)[k], s_amount=jnp.asarray(self.s_amount)[k],
+                         centres=self.centres, width=self.width, wavelengths=self.wavelengths)  # fmt: skip
+
+    def to_dict(self, names: tuple[str, ...]) -> dict[str, Any]:
+        f = lambda x: np.asarray(x, np.float64).tolist()  # noqa: E731
+        pairs = [{"pigments": [names[i], names[j]], "K_bumps": f(self.k_bumps[q]), "S_bumps": f(self.s_bumps[q]),
+                  "K_amount": f(self.k_amount[q]), "S_amount": f(self.s_amount[q])}
+                 for q, (i, j) in enumerate(self.members)]  # fmt: skip
+        return {"basis": {"centres": list(self.centres), "width": self.width}, "pairs": pairs}
+
+
 def optical_depths(
     K: Float[ArrayLike, "*#n p b"],
     S: Float[ArrayLike, "*#n p b"],
     amounts: Float[ArrayLike, "*#n p"],
     law: AmountLaw,
     weights: Float[ArrayLike, "*#n p"] | None = None,
+    pairs: PairTerms | None = None,
 ) -> tuple[Float[Array, "*n b"], Float[Array, "*n b"]]:
     r"""$Kx$ and $Sx$ of a layer of mixed pigments (the module docstring's law).
 
@@ -131,6 +214,7 @@ def optical_depths(
     - `amounts`: each pigment's amount in the layer, shape `(..., P)` (0 for absent ones).
     - `law`: the pigments' `AmountLaw` (its `gamma` of shape `(P,)`).
     - `weights`: mixing weights, shape `(P,)`; None for Duncan's.
+    - `pairs`: `PairTerms` for the pairs measured mixed, or None.
 
     **Returns:** `(Kx, Sx)`, shape `(..., B)`: `km.layer(Kx, Sx, 1)` is the layer.
     """
@@ -138,7 +222,11 @@ def optical_depths(
     total = jnp.sum(a, axis=-1, keepdims=True)
     u = concentrations(a, weights) * law(total)  # (..., P): each pigment's share of the layer
     K, S = jnp.asarray(K, a.dtype), jnp.asarray(S, a.dtype)
-    return jnp.einsum("...p,...pb->...b", u, K), jnp.einsum("...p,...pb->...b", u, S)
+    Kx, Sx = jnp.einsum("...p,...pb->...b", u, K), jnp.einsum("...p,...pb->...b", u, S)
+    if pairs is not None:
+        fk, fs = pairs.scales(a, law.reference)
+        Kx, Sx = Kx * fk, Sx * fs
+    return Kx, Sx
 
 
 def saunderson_in(R: Float[ArrayLike, "*b"], k2: float) -> Float[Array, "*b"]:
@@ -161,6 +249,7 @@ def reflectance(
     law: AmountLaw,
     weights: Float[ArrayLike, "*#n p"] | None = None,
     k2: float | Array = 0.0,
+    pairs: PairTerms | None = None,
 ) -> Float[Array, "*n b"]:
     r"""Reflectance of a mixed layer over an opaque ground, per band.
 
@@ -170,7 +259,7 @@ def reflectance(
 
     **Returns:** the measured reflectance, shape `(..., B)`.
     """
-    Kx, Sx = optical_depths(K, S, amounts, law, weights)
+    Kx, Sx = optical_depths(K, S, amounts, law, weights, pairs)
     g = saunderson_in(_float(ground), k2)  # k2 = 0: the identity (k2 may be traced)
     R, T = km.layer(Kx, Sx, 1.0)
     return saunderson_out(km.over(R, T, g), k2)
@@ -190,6 +279,7 @@ class Palette(eqx.Module):
     - `weights`: mixing weights, shape (P,) (all 1: Duncan).
     - `names`: the pigments' names.
     - `wavelengths`: the band grid, or None for sRGB channels.
+    - `pairs`: `PairTerms` for pairs measured mixed (None: Duncan for every mixture).
     """
 
     K: Float[Array, "p b"]
@@ -198,7 +288,12 @@ class Palette(eqx.Module):
     weights: Float[Array, "p"]
     names: tuple[str, ...] = eqx.field(static=True)
     wavelengths: tuple[float, ...] | None = eqx.field(static=True, default=None)
+    pairs: PairTerms | None = None
 
     def reflectance(self, amounts: Float[ArrayLike, "*n p"], ground: Float[ArrayLike, "*#n b"], k2: float = 0.0) -> Float[Array, "*n b"]:
         """Reflectance of layers with `amounts` of each pigment (shape `(..., P)`) over `ground`."""
-        return reflectance(self.K, self.S, amounts, ground, self.law, self.weights, k2)
+        return reflectance(self.K, self.S, amounts, ground, self.law, self.weights, k2, self.pairs)
+
+    def optical_depths(self, amounts: Float[ArrayLike, "*n p"]) -> tuple[Float[Array, "*n b"], Float[Array, "*n b"]]:
+        """$Kx$, $Sx$ of layers with `amounts` of each pigment (its pair terms included)."""
+        return optical_depths(self.K, self.S, amounts, self.law, self.weights, self.pairs)

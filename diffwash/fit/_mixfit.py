@@ -37,6 +37,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -45,7 +46,7 @@ import optimistix as optx
 from .. import colorimetry, km, mixing, spectral
 from ..library import Library
 from ..measurements import Measurements
-from . import _seen
+from . import _pairs, _seen
 from ._bandlsq import BandLevenbergMarquardt
 
 __all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score", "residuals", "RGB_GRID"]
@@ -79,6 +80,9 @@ class MixModel:
       CIEDE2000 residuals with a ridge of weight `ridge` towards its spectra: `diffwash.fit._seen`) or
       `"spectral"` (log reflectance only). RGB tables are always fitted in CIEDE2000.
     - `ridge`: the refinement's pull towards the spectral fit (CIEDE2000 units per unit log K or log S).
+    - `pairs`: spectral tables: after the pigments, fit `diffwash.mixing.PairTerms` for every pair the table
+      measured mixed (`diffwash.fit._pairs`), used for those pairs only; other pairs keep Duncan's law.
+    - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter).
     """
 
     gamma: bool = True
@@ -88,10 +92,13 @@ class MixModel:
     own: bool = False
     loss: str = "de2000"
     ridge: float = 3.0
+    pairs: bool = True
+    pair_ridge: float = _pairs.PAIR_RIDGE
 
     def describe(self) -> dict[str, Any]:
         return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
-                "own": self.own, "loss": self.loss, "ridge": self.ridge}
+                "own": self.own, "loss": self.loss, "ridge": self.ridge, "pairs": self.pairs,
+                "pair_ridge": self.pair_ridge}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -347,6 +354,11 @@ def fit_mixtures(
     w = w / np.exp(np.mean(np.log(w)))  # the weights' common scale is free: geometric mean 1
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
+    if m.spectral and model.pairs:
+        A, G = _dense(m, list(names))
+        terms, pairs_ok = _pairs.fit_pair_terms(palette, A, G, measured_lab(m, obs), obs.lab, k2,
+                                                ridge=model.pair_ridge)  # fmt: skip
+        palette, ok = eqx.tree_at(lambda p: p.pairs, palette, terms, is_leaf=lambda x: x is None), ok and pairs_ok
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2)
     de, de_ab = residuals(lib, m)
     fit = MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model)

@@ -1,0 +1,144 @@
+r"""Fit `diffwash.mixing.PairTerms` to the mixtures of the pairs a table measured, pair by pair, in CIEDE2000.
+
+With the pigments fitted (their K, S and amount laws serve every pair, measured
+mixed or not), what a measured pair does beyond Duncan's sums is fitted from
+its own mixture rows alone: smooth spectral scales of $Kx$ and $Sx$
+(`PAIR_BUMPS` Gaussian bumps each) and how those scales change with the
+layer's total amount (`diffwash.mixing.PairTerms`), $2n + 2$ numbers per pair.
+(A mixing weight per pair as well was measured to add nothing: docs/mixing.md.)
+The residuals are CIEDE2000's (`colorimetry.delta_e_2000_residuals`), with a
+ridge of weight `ridge` towards Duncan (all 0). The pairs are independent:
+one small Levenberg-Marquardt problem each (dense $(2n+2)^2$ normal
+equations, Marquardt's scaling), all of them at once under `jax.vmap`.
+
+docs/mixing.md measures the terms on rows of measured pairs held out of the
+fit, and chose the ridge and the number of bumps on a different split.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .. import colorimetry, mixing
+
+__all__ = ["fit_pair_terms", "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
+
+#: Gaussian bumps per spectral scale (over the palette's band grid).
+PAIR_BUMPS = 4
+#: The ridge towards Duncan (CIEDE2000 units per unit parameter).
+PAIR_RIDGE = 1.0
+#: Levenberg-Marquardt steps per pair (a pair has 2 * PAIR_BUMPS + 2 parameters: it converges in far fewer).
+PAIR_STEPS = 40
+
+
+def measured_pairs(A: np.ndarray) -> list[tuple[int, int]]:
+    """The pairs `(i, j)`, `i < j`, of the rows of an amount matrix (N, P) that hold exactly two pigments."""
+    on = A > 0
+    two = on.sum(axis=1) == 2
+    return sorted({tuple(int(k) for k in np.flatnonzero(row)) for row in on[two]})
+
+
+def _basis(wavelengths: tuple[float, ...], n: int) -> tuple[tuple[float, ...], float]:
+    c = np.linspace(wavelengths[0], wavelengths[-1], n)
+    return tuple(float(x) for x in c), float((c[1] - c[0]) * 0.8 if n > 1 else wavelengths[-1] - wavelengths[0])
+
+
+def _terms(theta: Array, members, n: int, centres, width, wavelengths) -> mixing.PairTerms:
+    """`PairTerms` of one pair (members `((0, 1),)`) or of `Q` pairs from parameters `(..., 2n + 2)`."""
+    t = jnp.atleast_2d(theta)
+    return mixing.PairTerms(members=members, k_bumps=t[:, :n], s_bumps=t[:, n : 2 * n], k_amount=t[:, 2 * n],
+                            s_amount=t[:, 2 * n + 1], centres=centres, width=width, wavelengths=wavelengths)
+
+
+def _pack(pairs, A, G, lab):
+    """Per pair: its rows' two amounts, grounds and target colours, padded to the largest pair (with a mask)."""
+    rows = [np.flatnonzero((A[:, i] > 0) & (A[:, j] > 0) & ((A > 0).sum(axis=1) == 2)) for i, j in pairs]
+    R = max(len(r) for r in rows)
+    idx = np.stack([np.pad(r, (0, R - len(r)), mode="edge") for r in rows])
+    mask = np.stack([np.arange(R) < len(r) for r in rows])
+    ij = np.asarray(pairs)
+    A2 = np.stack([A[idx, ij[:, :1]], A[idx, ij[:, 1:]]], axis=-1)
+    return A2, G[idx], lab[idx], mask
+
+
+def _lm(residuals: Callable[[Array], Array], theta0: Array, steps: int) -> tuple[Array, Array]:
+    """`steps` Levenberg-Marquardt steps on `residuals(theta)`; returns theta and the last step's relative gain."""
+
+    def loss(th):
+        r = residuals(th)
+        return jnp.sum(r * r)
+
+    def body(_, state):
+        th, f, mu, gain = state
+        r, J = residuals(th), jax.jacfwd(residuals)(th)
+        H, g = J.T @ J, J.T @ r
+        d = jnp.diagonal(H)
+        delta = jnp.linalg.solve(H + mu * jnp.diag(d + 1e-9 * jnp.mean(d) + 1e-12), -g)
+        fc = loss(th + delta)
+        ok = fc < f
+        return (jnp.where(ok, th + delta, th), jnp.where(ok, fc, f), jnp.where(ok, mu / 3, mu * 4),
+                jnp.where(ok, (f - fc) / jnp.maximum(f, 1e-30), gain))  # fmt: skip
+
+    f0 = loss(theta0)
+    th, _, _, gain = jax.lax.fori_loop(0, steps, body, (theta0, f0, jnp.asarray(1e-3, f0.dtype), jnp.ones_like(f0)))
+    return th, gain
+
+
+def fit_pair_terms(
+    palette: mixing.Palette,
+    A: Float[np.ndarray, "n p"],
+    G: Float[np.ndarray, "n b"],
+    lab_target: Float[np.ndarray, "n 3"],
+    lab_of: Callable[[Array], Array],
+    k2: float = 0.0,
+    *,
+    ridge: float = PAIR_RIDGE,
+    bumps: int = PAIR_BUMPS,
+    steps: int = PAIR_STEPS,
+) -> tuple[mixing.PairTerms | None, bool]:
+    """Fit a spectral palette's `PairTerms` to the two-pigment rows among `A` (module docstring).
+
+    **Arguments:**
+
+    - `palette`: the fitted pigments (spectral: `wavelengths` set); its own pair terms are ignored.
+    - `A`, `G`, `lab_target`: each row's amounts (N, P), ground reflectance (N, B) and measured CIELAB (N, 3).
+    - `lab_of`: reflectance (..., B) to CIELAB (the library's observation).
+    - `k2`: Saunderson's surface term of the palette's fit.
+    - `ridge`, `bumps`, `steps`: the module's constants.
+
+    **Returns:** `(terms, converged)`: the `PairTerms` (None when no row mixes exactly two pigments) and
+    whether every pair's last accepted step gained less than 1e-4 of its loss.
+    """
+    if palette.wavelengths is None:
+        raise ValueError("pair terms need a spectral palette (a band grid)")
+    pairs = measured_pairs(np.asarray(A))
+    if not pairs:
+        return None, True
+    dtype = jnp.zeros(()).dtype
+    centres, width = _basis(palette.wavelengths, bumps)
+    A2, G2, lab2, mask = (jnp.asarray(x, dtype) if x.dtype != bool else jnp.asarray(x)
+                          for x in _pack(pairs, np.asarray(A), np.asarray(G), np.asarray(lab_target)))  # fmt: skip
+    ij = np.asarray(pairs)
+    K, S = jnp.asarray(palette.K, dtype)[ij], jnp.asarray(palette.S, dtype)[ij]
+    gam, w = jnp.asarray(palette.law.gamma, dtype)[ij], jnp.asarray(palette.weights, dtype)[ij]
+    npar = 2 * bumps + 2
+
+    def one(K, S, gam, w, A2, G2, lab2, mask):
+        law = mixing.AmountLaw(gamma=gam, reference=palette.law.reference)
+
+        def residuals(theta):
+            terms = _terms(theta, ((0, 1),), bumps, centres, width, palette.wavelengths)
+            R = mixing.reflectance(K, S, A2, G2, law, w, k2, terms)
+            r = jnp.where(mask[:, None], colorimetry.delta_e_2000_residuals(lab2, lab_of(R)), 0)
+            return jnp.concatenate([r.ravel(), ridge * theta])
+
+        return _lm(residuals, jnp.zeros(npar, dtype), steps)
+
+    theta, gain = jax.jit(jax.vmap(one))(K, S, gam, w, A2, G2, lab2, mask)
+    terms = _terms(theta, tuple(pairs), bumps, centres, width, palette.wavelengths)
+    return terms, bool(jnp.all(gain < 1e-4))

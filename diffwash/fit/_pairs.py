@@ -67,7 +67,9 @@ def _pack(pairs, A, G, lab):
 
 
 def _lm(residuals: Callable[[Array], Array], theta0: Array, steps: int) -> tuple[Array, Array]:
-    """`steps` Levenberg-Marquardt steps on `residuals(theta)`; returns theta and the last step's relative gain."""
+    """`steps` Levenberg-Marquardt steps on `residuals(theta)`; returns theta and whether it converged: the last
+    accepted step lowered the loss by less than 1e-4 relative, or no step lowers it any more (the damping grew
+    past 1e8: a minimum as far as the arithmetic can tell)."""
 
     def loss(th):
         r = residuals(th)
@@ -85,8 +87,8 @@ def _lm(residuals: Callable[[Array], Array], theta0: Array, steps: int) -> tuple
                 jnp.where(ok, (f - fc) / jnp.maximum(f, 1e-30), gain))  # fmt: skip
 
     f0 = loss(theta0)
-    th, _, _, gain = jax.lax.fori_loop(0, steps, body, (theta0, f0, jnp.asarray(1e-3, f0.dtype), jnp.ones_like(f0)))
-    return th, gain
+    th, _, mu, gain = jax.lax.fori_loop(0, steps, body, (theta0, f0, jnp.asarray(1e-3, f0.dtype), jnp.ones_like(f0)))
+    return th, (gain < 1e-4) | (mu > 1e8)
 
 
 def fit_pair_terms(
@@ -112,7 +114,7 @@ def fit_pair_terms(
     - `ridge`, `bumps`, `steps`: the module's constants.
 
     **Returns:** `(terms, converged)`: the `PairTerms` (None when no row mixes exactly two pigments) and
-    whether every pair's last accepted step gained less than 1e-4 of its loss.
+    whether every pair's fit converged (`_lm`).
     """
     if palette.wavelengths is None:
         raise ValueError("pair terms need a spectral palette (a band grid)")
@@ -139,6 +141,6 @@ def fit_pair_terms(
 
         return _lm(residuals, jnp.zeros(npar, dtype), steps)
 
-    theta, gain = jax.jit(jax.vmap(one))(K, S, gam, w, A2, G2, lab2, mask)
+    theta, done = jax.jit(jax.vmap(one))(K, S, gam, w, A2, G2, lab2, mask)
     terms = _terms(theta, tuple(pairs), bumps, centres, width, palette.wavelengths)
-    return terms, bool(jnp.all(gain < 1e-4))
+    return terms, bool(jnp.all(done))

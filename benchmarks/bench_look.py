@@ -1,6 +1,6 @@
 """The watercolour look's cost and real-time agreement (issue 13), against the plain model.
 
-    python benchmarks/bench_look.py [--rounds 5] [--gl-size 1024] [--seconds 4] [--skip scene jax gl agreement lut]
+    python benchmarks/bench_look.py [--rounds 5] [--gl-size 1024] [--seconds 4] [--skip scene jax gl profile agreement lut]
 
 0. `diffwash.render` of data/scenes/watercolour.json (every effect on, 512^2, 100k triangles, CPU float32),
    warm, against the same scene without its "watercolour" object; and the PSNR between the two images.
@@ -13,6 +13,8 @@
    float G-buffer with per-pixel shadow lookups and hatching, three edge passes on a reduced grid, the final
    pass with the 3D mix LUT), with and without hatching. Frames alternate in rounds; medians and the median
    of per-round ratios.
+2b. The same frame pass by pass (`LookFrame.passes()`, `ctx.finish()` around each), and its geometry pass
+   with hatching off, the shadow per vertex, and depth only (vertex processing and triangle setup).
 3. Agreement: `diffwash preview` (the look's OpenGL passes) against `diffwash.render`, the showcase at
    512^2, as 8-bit sRGB PSNR.
 4. The 3D mix LUT's error by size.
@@ -23,6 +25,7 @@ Timings on a shared machine are provisional; the ratios (taken in alternating ro
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -198,6 +201,89 @@ def gl_costs(size: int, seconds: float, rounds: int) -> dict:
     return res
 
 
+def gl_profile(size: int, rounds: int) -> dict:
+    """Milliseconds per pass of `LookFrame` (every effect on) at size^2, and of its geometry pass with effects off.
+
+    Each pass is drawn 3 times between `ctx.finish()` calls (llvmpipe renders when a pass's output is
+    read or on finish), in alternating rounds; medians. "vertex processing and setup" is a depth-only
+    draw of the mesh (what every geometry pass costs before shading); "plain LUT shader" is the
+    exported preview, the frame rate's ceiling.
+    """
+    import equinox as eqx
+    import moderngl
+
+    from diffwash import preview
+    from diffwash.look import _gl
+    from diffwash.look._frame import LookFrame, _set_uniforms, geometry_sources
+
+    ctx = preview.create_context()
+    scene = diffwash.load_scene(SHOWCASE)
+    lf = LookFrame(ctx, scene, size=(size, size))
+    steps = {f"pass: {k}": f for k, f in lf.passes().items()}
+    steps["whole frame (LookFrame.draw)"] = lf.draw
+    geometry = lf.passes()["geometry"]
+
+    def variant(hatching, shadow):
+        vert, frag = geometry_sources("glsl330", hatching, shadow)
+        prog = ctx.program(vertex_shader=vert, fragment_shader=frag)
+        _set_uniforms(prog, lf.uniforms)
+        vao = ctx.vertex_array(prog, [(lf.vbo, "3f 3f 1f 1f", "position", "normal", "mix_in", "stroke_in")], lf.ibo)
+
+        def run():
+            lf.geometry, lf.vao, saved = prog, vao, (lf.geometry, lf.vao)
+            geometry()
+            lf.geometry, lf.vao = saved
+
+        return run
+
+    steps["geometry: shadow per vertex (not per pixel)"] = variant(True, "vertex")
+    steps["geometry: no hatching"] = variant(False, "pixel")
+    steps["geometry: no hatching, shadow per vertex"] = variant(False, "vertex")
+    head = _gl.header("glsl330")
+    depth = ctx.program(vertex_shader=head + "layout(location = 0) in vec3 position;\nuniform mat4 model;\nuniform mat4 view_projection;\n"
+                        "void main() { gl_Position = view_projection * (model * vec4(position, 1.0)); }\n",
+                        fragment_shader=head + "void main() {}\n")  # fmt: skip
+    _set_uniforms(depth, lf.uniforms)
+    steps["geometry: vertex processing and setup (depth only)"] = _depth_only(ctx, lf, depth, moderngl)
+    plain = eqx.tree_at(lambda s: s.watercolour, scene, None, is_leaf=lambda x: x is None)
+    base = preview.Preview(ctx, plain)
+    bfbo = base.framebuffer(size, size)
+    steps["plain LUT shader (whole frame)"] = lambda: (setattr(ctx, "viewport", (0, 0, size, size)), base.draw(bfbo))
+    return _time_steps(ctx, steps, rounds)
+
+
+def _depth_only(ctx, lf, prog, moderngl):
+    vao = ctx.vertex_array(prog, [(lf.vbo, "3f 20x", "position")], lf.ibo)
+
+    def run():
+        lf.gfbo.use()
+        ctx.viewport = (0, 0, *lf.size)
+        lf.gfbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.enable(moderngl.CULL_FACE) if lf.scene.cull_backfaces else ctx.disable(moderngl.CULL_FACE)
+        vao.render(moderngl.TRIANGLES)
+        ctx.disable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+
+    return run
+
+
+def _time_steps(ctx, steps: dict, rounds: int, repeat: int = 3) -> dict:
+    for f in steps.values():
+        f()
+    ctx.finish()
+    times = {k: [] for k in steps}
+    for _ in range(rounds):
+        for k, f in steps.items():
+            ctx.finish()
+            t0 = time.perf_counter()
+            for _ in range(repeat):
+                f()
+            ctx.finish()
+            times[k].append((time.perf_counter() - t0) / repeat)
+    return {k: 1e3 * statistics.median(v) for k, v in times.items()}
+
+
 def agreement() -> float:
     """PSNR of the look's OpenGL frame (`diffwash preview`) against `diffwash.render`, the showcase, 8-bit sRGB."""
     from diffwash import preview
@@ -232,7 +318,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--gl-size", type=int, default=1024)
     ap.add_argument("--seconds", type=float, default=4.0)
-    ap.add_argument("--skip", nargs="*", default=[], choices=["scene", "jax", "gl", "agreement", "lut"])
+    ap.add_argument("--skip", nargs="*", default=[], choices=["scene", "jax", "gl", "profile", "agreement", "lut"])
     args = ap.parse_args(argv)
     if "scene" not in args.skip:
         print("| diffwash.render, data/scenes/watercolour.json, 512^2, 100k triangles, CPU float32 | value |\n| --- | ---: |")
@@ -248,6 +334,11 @@ def main(argv=None) -> int:
         print(f"\nOpenGL: {res.pop('renderer')}, {args.gl_size}^2, 100k triangles\n\n| frame | fps or ratio |\n| --- | ---: |")
         for k, v in res.items():
             print(f"| {k} | {v:.2f} |")
+    if "profile" not in args.skip:
+        print(f"\nOpenGL passes, {args.gl_size}^2 (LP_NUM_THREADS={os.environ.get('LP_NUM_THREADS', 'unset')}, {os.cpu_count()} cores)\n")
+        print("| pass or variant | ms |\n| --- | ---: |")
+        for k, v in gl_profile(args.gl_size, args.rounds).items():
+            print(f"| {k} | {v:.1f} |")
     if "lut" not in args.skip:
         print(f"\n3D mix LUT over {LUT_RANGE}x the model's thickness range, against the exact glaze (8-bit sRGB levels)\n")
         print("| table | max | rms | RGBA8 bytes |\n| --- | ---: | ---: | ---: |")

@@ -209,32 +209,50 @@ class LookFrame:
         vao.render(moderngl.TRIANGLES)
         return depth
 
-    def draw(self):
+    def passes(self) -> dict[str, Any]:
+        """The frame's passes in order, each a function that draws it (`draw()` runs them all; for timing one)."""
         ctx = self.ctx
         W, H = self.size
         units = {"look_shadow_map": self.shadow_map, "look_mix_lut": self.lut, "look_screen0": self.s0, "look_screen1": self.s1}
         if self.tam:
             units.update(look_tam0=self.tam[0], look_tam1=self.tam[1])
-        self.gfbo.use()
-        ctx.viewport = (0, 0, W, H)
-        self.gfbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.enable(moderngl.CULL_FACE) if self.scene.cull_backfaces else ctx.disable(moderngl.CULL_FACE)
-        _bind(self.geometry, units)
-        self.vao.render(moderngl.TRIANGLES)
-        ctx.disable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        ctx.viewport = (0, 0, *self.low_size)
-        sources = [self.gbuf, self.low[0], self.low[1]]
-        targets = [self.lfbo[0], self.lfbo[1], self.lfbo[0]]
-        for vao, prog, src, dst in zip(self.fullscreen[:3], self.edge_programs, sources, targets):
-            dst.use()
-            _bind(prog, {"look_source": src})
-            vao.render(vertices=3)
-        self.ofbo.use()
-        ctx.viewport = (0, 0, W, H)
-        _bind(self.final, {**units, "look_gbuffer": self.gbuf, "look_edge_blurred": self.low[0]})
-        self.fullscreen[3].render(vertices=3)
+
+        def geometry():
+            self.gfbo.use()
+            ctx.viewport = (0, 0, W, H)
+            self.gfbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.enable(moderngl.CULL_FACE) if self.scene.cull_backfaces else ctx.disable(moderngl.CULL_FACE)
+            _bind(self.geometry, units)
+            self.vao.render(moderngl.TRIANGLES)
+            ctx.disable(moderngl.DEPTH_TEST)
+            ctx.disable(moderngl.CULL_FACE)
+
+        def edge(vao, prog, src, dst):
+            def run():
+                dst.use()
+                ctx.viewport = (0, 0, *self.low_size)
+                _bind(prog, {"look_source": src})
+                vao.render(vertices=3)
+
+            return run
+
+        def final():
+            self.ofbo.use()
+            ctx.viewport = (0, 0, W, H)
+            _bind(self.final, {**units, "look_gbuffer": self.gbuf, "look_edge_blurred": self.low[0]})
+            self.fullscreen[3].render(vertices=3)
+
+        out = {"geometry": geometry}
+        edges = zip(("edge downsample", "edge blur rows", "edge blur columns"), self.fullscreen[:3], self.edge_programs,
+                    [self.gbuf, self.low[0], self.low[1]], [self.lfbo[0], self.lfbo[1], self.lfbo[0]])  # fmt: skip
+        out.update({name: edge(vao, prog, src, dst) for name, vao, prog, src, dst in edges})
+        out["final"] = final
+        return out
+
+    def draw(self):
+        for run in self.passes().values():
+            run()
 
     def frame(self) -> np.ndarray:
         self.draw()

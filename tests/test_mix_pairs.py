@@ -169,3 +169,26 @@ def test_bad_pair_terms_are_refused_naming_file_and_field(three_paints, tmp_path
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and str(bad) in err and field in err
     assert not (tmp_path / "p.csv").exists()
+
+
+def test_fit_swatch_writes_a_mixture_report_and_refuses_pair_terms_for_rgb(three_paints, tmp_path, capsys):
+    m, _ = three_paints
+    two = m.select([set(p) <= {"P5", "P9"} for p in m.pigments])
+    table = tmp_path / "two.csv"
+    rows = ["pigment,amount,ground," + ",".join(f"{w:g}" for w in two.wavelengths)]
+    rows.append("paper,0,paper," + ",".join(f"{v!r}" for v in two.grounds["paper"]))
+    for p, a, v in zip(two.pigments, two.amounts, two.values):
+        rows.append(f"{'+'.join(p)},{'+'.join(f'{x:g}' for x in a)},paper," + ",".join(f"{x!r}" for x in v))
+    table.write_text("\n".join(rows) + "\n")
+    lib, report = tmp_path / "lib.json", tmp_path / "report.png"
+    assert main(["fit-swatch", "--table", str(table), "-o", str(lib), "--report", str(report),
+                 "--max-steps", "20", "--allow-unconverged"]) == 0  # fmt: skip
+    assert "pairs=True" in capsys.readouterr().out
+    assert json.loads(lib.read_text())["pair_terms"]["pairs"][0]["pigments"] == ["P5", "P9"]
+    from PIL import Image
+
+    with Image.open(report) as im:
+        assert im.size[0] > 600
+    rgb = ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv"
+    assert main(["fit-swatch", "--table", str(rgb), "--pair-terms", "on", "-o", str(tmp_path / "x.json")]) == 2
+    assert "--pair-terms" in capsys.readouterr().err and not (tmp_path / "x.json").exists()

@@ -78,6 +78,7 @@ def test_the_refinement_lowers_the_colour_error_of_a_real_fit(two_paints):
     plain = fit_mixtures(two_paints, model=MixModel(loss="spectral", pairs=False))
     seen = fit_mixtures(two_paints, model=MixModel(pairs=False))
     assert seen.library.fit["model"]["loss"] == "de2000"
+    assert seen.library.palette.pairs is None and "pair_terms" not in seen.library.to_dict()  # pairs=False
     assert np.all(np.isfinite(seen.delta_e))
     # Measured on this subset: 0.94 -> 0.86 mean CIEDE2000 (max 3.7 -> 2.8) with the default ridge of 3.
     assert seen.summary()["mean_de2000"] < 0.95 * plain.summary()["mean_de2000"]

@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import DiffwashError, FailureError, measurements
 from .. import io as dio
-from ..fit import MixModel, fit_mixtures
+from ..fit import MixModel, fit_mixtures, save_mixture_report
 
 
 def _needs_library(table: str) -> bool:
@@ -48,11 +48,11 @@ def run_library(args, m: measurements.Measurements, out: Path, report: Path | No
                                 field=f"--{flag}")  # fmt: skip
     if args.refine and not m.spectral:
         raise DiffwashError("applies to spectral tables (an RGB table is fitted in CIEDE2000 already)", field="--refine")
-    if report is not None:
-        raise DiffwashError("no report picture for a spectral or mixture table yet (the library holds per-row "
-                            "residuals)", field="--report")  # fmt: skip
+    if args.pair_terms and not m.spectral:
+        raise DiffwashError("applies to spectral tables (an RGB table is fitted without pair terms)",
+                            field="--pair-terms")  # fmt: skip
     model = MixModel(weights=args.mixing == "weights", surface=args.surface == "saunderson",
-                     loss="spectral" if args.refine == "none" else "de2000")
+                     loss="spectral" if args.refine == "none" else "de2000", pairs=args.pair_terms != "off")
     fit = fit_mixtures(m, model=model, max_steps=args.max_steps)
     kind = f"{len(m.wavelengths)} bands" if m.spectral else "sRGB, fitted as smooth spectra"
     s = fit.summary()
@@ -65,7 +65,10 @@ def run_library(args, m: measurements.Measurements, out: Path, report: Path | No
     if not fit.converged and not args.allow_unconverged:
         raise FailureError("the fit did not converge; nothing was written (use --allow-unconverged to write it "
                            "anyway, or raise --max-steps)")  # fmt: skip
-    dio.write_json(out, fit.library.to_dict())
-    print(f"wrote {out}")
+    with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+        dio.write_json(out_tmp, fit.library.to_dict())
+        if report is not None:
+            save_mixture_report(report_tmp, fit, m)
+    print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0

@@ -55,6 +55,9 @@ def add_arguments(p) -> None:
     p.add_argument("--refine", choices=("de2000", "none"),
                    help="spectral table: after the log-reflectance fit, refine in CIEDE2000 with a ridge towards its "
                         "spectra (de2000, the default; docs/mixing.md), or stop at the log-reflectance fit")
+    p.add_argument("--pair-terms", choices=("on", "off"),
+                   help="spectral table: fit pair terms for the pairs it measured mixed (on, the default; "
+                        "docs/mixing.md), or Duncan's sums for every mixture")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"),
@@ -83,9 +86,9 @@ def run(args) -> int:
         return _run_table(args, out, report)
     if not args.photos:
         raise DiffwashError("needs a PHOTO and its --layout, or --table CSV", field="PHOTO")
-    for flag in ("plain", "thickness", "surface", "linear", "batch", "refine"):
+    for flag in ("plain", "thickness", "surface", "linear", "batch", "refine", "pair_terms"):
         if getattr(args, flag):
-            raise DiffwashError("only applies to --table fits", field=f"--{flag}")
+            raise DiffwashError("only applies to --table fits", field=f"--{flag.replace('_', '-')}")
     if not args.layout:
         raise DiffwashError("missing: each photo needs its layout file", field="--layout")
     if len(args.layout) != len(args.photos):
@@ -148,6 +151,8 @@ def _run_table(args, out: Path, report: Path | None) -> int:
     if args.refine:
         raise DiffwashError("only applies to spectral or mixture tables (a single-pigment RGB table is fitted in "
                             "CIEDE2000 already)", field="--refine")  # fmt: skip
+    if args.pair_terms:
+        raise DiffwashError("only applies to spectral tables with mixtures", field="--pair-terms")
     if args.loss == "noise":
         raise DiffwashError("a table has no pixels to estimate noise from: choose de2000, cie94, lab or srgb",
                             field="--loss")  # fmt: skip

@@ -13,7 +13,8 @@ Three fits, each a thin layer of data handling over optimistix least squares:
   constants, shininess, light, paper, the watercolour look's `watercolour.<effect>.<key>`) from
   target images; `diffwash fit-image`.
 
-Each result has a one-page report figure: `save_swatch_report`, `save_table_report`, `save_image_report`
+Each result has a one-page report figure: `save_swatch_report`, `save_table_report`, `save_mixture_report`,
+`save_image_report`
 (what the CLI's `--report` writes).
 
 Formats, models, gauges and what each fit can identify: docs/fitting.md.
@@ -32,6 +33,7 @@ from ._photo import Layout as Layout
 from ._photo import parse_layout as parse_layout
 from ._photo import read_layout as read_layout
 from ._report import save_image_report as save_image_report
+from ._report import save_mixture_report as save_mixture_report
 from ._report import save_swatch_report as save_swatch_report
 from ._report import save_table_report as save_table_report
 from ._swatch import SWATCH_MODEL as SWATCH_MODEL

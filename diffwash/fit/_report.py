@@ -22,7 +22,7 @@ from .. import colorimetry
 from .._io import atomic_path, read_image
 from .._render import render
 
-__all__ = ["save_swatch_report", "save_table_report", "save_image_report"]
+__all__ = ["save_swatch_report", "save_table_report", "save_mixture_report", "save_image_report"]
 
 
 def _display(linear: Any) -> np.ndarray:
@@ -174,6 +174,48 @@ def save_table_report(path: str | os.PathLike, fit: Any, table: Any, held_out: A
     extra = " (* held out)" if held_out is not None else ""
     _pairs(ax, groups, f"measured (left half) | fitted (right half){extra}; model: "
                        f"{', '.join(f'{k}={v}' for k, v in fit.model.describe().items())}", step=2.0)  # fmt: skip
+    _save(fig, path)
+
+
+def _mixture_rows(fit: Any, m: Any, rows: Sequence[int]) -> list[tuple[str, Any, Any, float]]:
+    """Squares of table rows: caption, measured and predicted linear sRGB, CIEDE2000."""
+    pred = fit.library.predict(m.pigments, m.amounts, m.ground)
+    measured = m.values @ np.asarray(fit.library.observation.to_rgb) if m.spectral else m.values
+    return [(f"{'+'.join(m.pigments[r])}\n{'+'.join(f'{a:g}' for a in m.amounts[r])}", measured[r],
+             pred.linear_srgb[r], float(fit.delta_e[r])) for r in rows]  # fmt: skip
+
+
+def save_mixture_report(path: str | os.PathLike, fit: Any, m: Any, per_row: int = 10) -> None:
+    """Write a PNG report of a `MixtureFit` of table `m`: the worst rows and a sample of the others (measured |
+    predicted squares), the CIEDE2000 of single paints and mixtures, and each pair's mean CIEDE2000."""
+    de, mix = np.asarray(fit.delta_e), np.asarray(m.is_mixture)
+    order = np.argsort(-de)
+    worst = order[: 2 * per_row]
+    rest = np.setdiff1d(np.arange(len(m)), worst)
+    sample = rest[np.linspace(0, len(rest) - 1, min(2 * per_row, len(rest))).astype(int)] if len(rest) else rest
+    squares = _mixture_rows(fit, m, [*worst, *sample])
+    groups = [(label, squares[k * per_row : (k + 1) * per_row]) for k, label in
+              enumerate(["worst", "", "others", ""]) if squares[k * per_row : (k + 1) * per_row]]  # fmt: skip
+    fig = _figure(figsize=(2.0 + 0.75 * per_row, 3.2 + 1.3 * len(groups)))
+    ax = fig.add_axes([0.08, 0.38, 0.9, 0.58])
+    s = fit.summary()
+    _pairs(ax, groups, f"measured (left half) | predicted (right half); mean CIEDE2000 {s['mean_de2000']:.2f}, "
+                       f"{100 * s['share_de_ab_5']:.1f}% within dE*ab 5", step=2.0)  # fmt: skip
+    h = fig.add_axes([0.07, 0.07, 0.38, 0.24])
+    bins = np.linspace(0, max(float(de.max()), 1e-3), 30)
+    for sel, label in ((~mix, "single paints"), (mix, "mixtures")):
+        if sel.any():
+            h.hist(de[sel], bins, alpha=0.6, label=f"{label} (mean {de[sel].mean():.2f})")
+    h.set_xlabel("CIEDE2000")
+    h.legend(fontsize=7)
+    b = fig.add_axes([0.55, 0.07, 0.43, 0.24])
+    pairs = sorted({"+".join(sorted(set(p))) for p, x in zip(m.pigments, mix) if x})
+    means = [float(np.mean([d for d, p, x in zip(de, m.pigments, mix) if x and "+".join(sorted(set(p))) == q]))
+             for q in pairs]  # fmt: skip
+    b.bar(range(len(pairs)), means, color="0.4")
+    b.set_xticks(range(len(pairs)), pairs, rotation=90, fontsize=5)
+    b.set_ylabel("mean CIEDE2000", fontsize=8)
+    b.set_title("per mixed pair", fontsize=8, loc="left")
     _save(fig, path)
 
 

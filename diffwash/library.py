@@ -41,7 +41,7 @@ import numpy as np
 
 from . import colorimetry, mixing, spectral
 from ._errors import DiffwashError
-from ._io import atomic_path, read_json, write_json
+from ._io import atomic_path, finite_number, read_json, write_json
 from .measurements import Queries, parse_mixture, read_queries
 
 __all__ = ["Library", "Prediction", "load_library", "predict"]
@@ -220,7 +220,7 @@ def _observation(o: Any, path: Any) -> spectral.Observation:
 
 
 def _number(v: Any, path: Any, field: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+    if not finite_number(v):
         raise DiffwashError("must be a finite number", file=path, field=field)
     return float(v)
 

@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, write_spectral_table
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -174,12 +174,7 @@ def test_bad_pair_terms_are_refused_naming_file_and_field(three_paints, tmp_path
 def test_fit_swatch_writes_a_mixture_report_and_refuses_pair_terms_for_rgb(three_paints, tmp_path, capsys):
     m, _ = three_paints
     two = m.select([set(p) <= {"P5", "P9"} for p in m.pigments])
-    table = tmp_path / "two.csv"
-    rows = ["pigment,amount,ground," + ",".join(f"{w:g}" for w in two.wavelengths)]
-    rows.append("paper,0,paper," + ",".join(f"{v!r}" for v in two.grounds["paper"]))
-    for p, a, v in zip(two.pigments, two.amounts, two.values):
-        rows.append(f"{'+'.join(p)},{'+'.join(f'{x:g}' for x in a)},paper," + ",".join(f"{x!r}" for x in v))
-    table.write_text("\n".join(rows) + "\n")
+    table = write_spectral_table(tmp_path / "two.csv", two)
     lib, report = tmp_path / "lib.json", tmp_path / "report.png"
     assert main(["fit-swatch", "--table", str(table), "-o", str(lib), "--report", str(report),
                  "--max-steps", "20", "--allow-unconverged"]) == 0  # fmt: skip

@@ -5,7 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, write_spectral_table
 
 from diffwash import colorimetry, measurements, spectral
 from diffwash.cli import main
@@ -86,12 +86,7 @@ def test_the_refinement_lowers_the_colour_error_of_a_real_fit(two_paints):
 
 
 def test_fit_swatch_refine_none_is_the_log_reflectance_fit(two_paints, tmp_path, capsys):
-    table = tmp_path / "two.csv"
-    rows = ["pigment,amount,ground," + ",".join(f"{w:g}" for w in two_paints.wavelengths)]
-    rows.append("paper,0,paper," + ",".join(f"{v!r}" for v in two_paints.grounds["paper"]))
-    for p, a, v in zip(two_paints.pigments, two_paints.amounts, two_paints.values):
-        rows.append(f"{'+'.join(p)},{'+'.join(f'{x:g}' for x in a)},paper," + ",".join(f"{x!r}" for x in v))
-    table.write_text("\n".join(rows) + "\n")
+    table = write_spectral_table(tmp_path / "two.csv", two_paints)
     assert main(["fit-swatch", "--table", str(table), "--refine", "none", "-o", str(tmp_path / "lib.json")]) == 0
     assert "loss=spectral" in capsys.readouterr().out
 

@@ -152,14 +152,36 @@ def mixture(
 #: What `fit_image` fits per sRGB channel, and so not in a scene whose glazes are spectral: their K and S and
 #: the paper live on the library's bands.
 _PER_CHANNEL = ("wash.K", "wash.S", "unlit.K", "unlit.S", "paper")
+#: What `fit_image` fits of a glaze that is a library mixture: its proportions and its amount.
+_OF_MIXTURE = ("mix", "amount")
 
 
 def check_fittable(params: Any, names: tuple[str, ...]) -> None:
-    """Refuse fitting a spectral scene's pigments or paper by channel (one line naming the parameter)."""
-    if getattr(params, "observation", None) is None:
-        return
+    """Refuse, in one line naming the parameter, what `fit_image` cannot fit in `params`.
+
+    A spectral scene's pigments or paper by channel; a glaze's `mix` or `amount` when that glaze is not
+    a library mixture (or, for `mix`, a single library pigment: no proportions to fit); a glaze's K or S
+    together with its `mix` or `amount` (K and S would replace the mixture).
+    """
+    if getattr(params, "observation", None) is not None:
+        for n in names:
+            if n in _PER_CHANNEL:
+                raise DiffwashError(f"cannot fit {n!r} of a scene whose glazes are spectral (library pigments, "
+                                    f"{len(params.observation.bands)} bands): their K, S and the paper come from the "
+                                    "library; fit the shading constants, the light, the mixtures' proportions and "
+                                    "amounts (wash.mix, wash.amount, ...) or refit the library", field="--fit")  # fmt: skip
     for n in names:
-        if n in _PER_CHANNEL:
-            raise DiffwashError(f"cannot fit {n!r} of a scene whose glazes are spectral (library pigments, "
-                                f"{len(params.observation.bands)} bands): their K, S and the paper come from the "
-                                "library; fit the shading constants, the light or refit the library", field="--fit")  # fmt: skip
+        glaze, _, which = n.partition(".")
+        if glaze not in ("wash", "unlit") or which not in _OF_MIXTURE:
+            continue
+        paint = getattr(params, glaze)
+        if not isinstance(paint, Mixture):
+            raise DiffwashError(f"cannot fit {n!r}: the scene's {glaze} is the pigment {paint.name!r}, not a mixture "
+                                f'of library pigments (a glaze {{"library": FILE, "mix": {{...}}}})', field="--fit")  # fmt: skip
+        if which == "mix" and len(paint.palette.names) < 2:
+            raise DiffwashError(f"cannot fit {n!r}: the scene's {glaze} is one library pigment ({paint.name}), so it "
+                                f'has no proportions to fit; give it a "mix" of two or more', field="--fit")  # fmt: skip
+        for other in (f"{glaze}.K", f"{glaze}.S"):
+            if other in names:
+                raise DiffwashError(f"cannot fit {n!r} together with {other!r}: fitted K and S replace the {glaze}'s "
+                                    "mixture; fit one or the other", field="--fit")  # fmt: skip

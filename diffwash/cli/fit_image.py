@@ -1,5 +1,6 @@
-"""Fit named scene parameters (pigment K and S, gain, bias, thickness constants, shininess, light, paper, and the
-watercolour look's strengths, widths and amplitudes by their scene keys, e.g. watercolour.edges.darkening) to one or
+"""Fit named scene parameters (pigment K and S, gain, bias, thickness constants, shininess, light, paper, a library
+mixture's proportions and amount (wash.mix, wash.amount, unlit.mix, unlit.amount), and the watercolour look's
+strengths, widths and amplitudes by their scene keys, e.g. watercolour.edges.darkening) to one or
 more target images with an optimistix solver, and write the fitted scene file, which diffwash render, bake and
 export read. Several views: one --scene per target, or one scene and --cameras CAMERAS.json (a list of camera
 objects, one per target). Parameters, gauges and losses are described in docs/fitting.md; the Python equivalent

@@ -1,7 +1,8 @@
 r"""Shading parameters from target images: render, compare, and solve with optimistix.
 
 `fit_image` fits named parameters of a scene (pigment K and S, gain, bias, the
-thickness constants, shininess, the light, the paper...) so that the scene's
+thickness constants, shininess, the light, the paper, the proportions and
+amount of a library mixture...) so that the scene's
 rendering matches one or more target images, with an optimistix least-squares
 solver (Levenberg-Marquardt by default).
 
@@ -20,6 +21,14 @@ linearised from sRGB) or in CIELAB (`loss="lab"`, closer to what the eye sees).
   is infinite);
 - the light by two angles (azimuth and elevation): the model only sees its
   direction, so its length is not a parameter;
+- a glaze's library mixture (`wash.mix`, `unlit.mix`: its proportions) by
+  the isometric log-ratio of the proportions (`_simplex_basis`): P - 1 numbers
+  for P pigments, mapped to proportions by a softmax, so they stay >= 0 and
+  sum to 1 (the model sees only their ratios; the sum is the gauge it
+  fixes). Starting proportions below `MIN_PROPORTION` are raised to it (a
+  log-ratio at 0 is infinite); `log` for its amount (`wash.amount`,
+  `unlit.amount`). Either is refused, in one line naming it, on a glaze that
+  is not a library mixture;
 - the watercolour look's parameters (`watercolour.edges.darkening`, ...,
   named by their scene keys): `logit` for the fractions (`paper.granulation`,
   `shadow.strength`, `hatching.amount`), `log` for the others.
@@ -43,6 +52,11 @@ trade would leave a direction with no information, so one side is held fixed
   unit of that thickness.
 - `k_specular` against `k_wash`: the wash thickness uses only their product;
   with both named, `k_specular` is held fixed.
+- a library mixture's amount against its glaze's thickness scale: the amount
+  scales K and S through the pigments' amount laws (all alike but for their
+  exponents and the pair terms), nearly as the thickness does; with
+  `wash.amount` and `k_wash` both named, `k_wash` is held (and `k_unlit` with
+  `unlit.amount`).
 """
 
 from __future__ import annotations
@@ -77,7 +91,8 @@ from ..shading import Params
 
 __all__ = ["FITTABLE", "SOLVERS", "ImageFit", "fit_image", "parse_fit_list", "load_cameras"]
 
-#: Fittable parameters: name -> (kind, size). Kinds: log (> 0), logit (in (0, 1)), sphere (a direction).
+#: Fittable parameters: name -> (kind, size). Kinds: log (> 0), logit (in (0, 1)), sphere (a direction),
+#: simplex (proportions summing to 1; size 0: one fewer than the glaze's mixture has pigments).
 FITTABLE: dict[str, tuple[str, int]] = {
     "gain": ("logit", 1),
     "bias": ("logit", 1),
@@ -92,12 +107,19 @@ FITTABLE: dict[str, tuple[str, int]] = {
     "unlit.S": ("log", 3),
     "paper": ("logit", 3),
     "light": ("sphere", 2),
+    # A glaze that is a mixture of library pigments: its proportions and amount.
+    "wash.mix": ("simplex", 0),
+    "wash.amount": ("log", 1),
+    "unlit.mix": ("simplex", 0),
+    "unlit.amount": ("log", 1),
     # The watercolour look's continuous parameters (a scene's "watercolour" object, that effect on).
     **{n: ("logit" if n in LOOK_FRACTIONS else "log", 1) for n in LOOK_PARAMETERS},
 }
 #: Solvers by name: least-squares solvers work on the residuals, minimisers on half their sum of squares.
 SOLVERS = ("lm", "gauss-newton", "dogleg", "bfgs")
 LOSSES = ("linear", "lab")
+#: Starting proportions of a fitted mixture are raised to this (then renormalised): a log-ratio at 0 is infinite.
+MIN_PROPORTION = 1e-3
 
 
 def parse_fit_list(text: str | Sequence[str], *, field: str = "--fit") -> tuple[str, ...]:
@@ -127,6 +149,12 @@ def _gauges(names: tuple[str, ...]) -> tuple[tuple[str, ...], list[str]]:
             notes.append(f"gauge: {k} is held at its starting value, since {glaze}.K and {glaze}.S are fitted too "
                          f"(the {glaze} layer sees only K*thickness and S*thickness); the fitted K and S are per "
                          f"unit of that thickness")  # fmt: skip
+    for glaze, k in (("wash", "k_wash"), ("unlit", "k_unlit")):
+        if f"{glaze}.amount" in names and k in names and k not in held:
+            held.add(k)
+            notes.append(f"gauge: {k} is held at its starting value, since {glaze}.amount is fitted too (the amount "
+                         f"scales the {glaze}'s K and S through the pigments' amount laws, nearly as the thickness "
+                         f"does)")  # fmt: skip
     if "k_specular" in names and "k_wash" in names and "k_wash" not in held:
         held.add("k_specular")
         notes.append("gauge: k_specular is held at its starting value, since k_wash is fitted too "
@@ -142,8 +170,27 @@ def _get(params: Params, name: str, look: wl.Look | None = None) -> np.ndarray:
         return np.asarray(getattr(look, LOOK_PARAMETERS[name]), np.float64)
     if "." in name:
         glaze, which = name.split(".")
-        return np.asarray(getattr(getattr(params, glaze), which), np.float64)
+        paint = getattr(params, glaze)
+        if which == "mix":  # the proportions as shares (the model normalises them)
+            p = np.asarray(paint.proportions, np.float64)
+            return p / p.sum() if p.sum() > 0 else p
+        return np.asarray(getattr(paint, which), np.float64)
     return np.asarray(getattr(params, name), np.float64)
+
+
+@functools.cache
+def _simplex_basis(n: int) -> np.ndarray:
+    r"""An orthonormal basis, shape (n, n - 1), of the vectors whose entries sum to 0 (Helmert's).
+
+    The isometric log-ratio coordinates of proportions $p$ are $y = V^T \log p$, and
+    $p = \mathrm{softmax}(V y)$: $V V^T$ removes the mean of $\log p$, which the softmax ignores, so
+    every $y$ is one point of the simplex and every point with $p > 0$ one $y$ (no gauge left).
+    """
+    V = np.zeros((n, n - 1))
+    for k in range(1, n):
+        V[:k, k - 1] = 1 / math.sqrt(k * (k + 1))
+        V[k, k - 1] = -k / math.sqrt(k * (k + 1))
+    return V
 
 
 def _logit(p: np.ndarray) -> np.ndarray:
@@ -161,6 +208,9 @@ def _encode(params: Params, names: tuple[str, ...], look: wl.Look | None = None)
             y[n] = np.log(np.maximum(v, 1e-6))
         elif kind == "logit":
             y[n] = _logit(v)
+        elif kind == "simplex":
+            p = np.maximum(v, MIN_PROPORTION * max(float(v.sum()), 1e-300))
+            y[n] = _simplex_basis(v.size).T @ np.log(p / p.sum())
         else:  # sphere: azimuth about +y from +z towards +x, elevation towards +y
             d = v / max(float(np.linalg.norm(v)), 1e-300)
             y[n] = np.array([math.atan2(d[0], d[2]), math.asin(float(np.clip(d[1], -1, 1)))])
@@ -188,10 +238,19 @@ def _decode(y: dict[str, Any], base: Params, light_length: float) -> Params:
             values[n] = jnp.exp(v)
         elif kind == "logit":
             values[n] = jax.nn.sigmoid(v)
+        elif kind == "simplex":
+            values[n] = jax.nn.softmax(jnp.asarray(_simplex_basis(v.shape[0] + 1), v.dtype) @ v)
         else:
             az, el = v[0], v[1]
             values[n] = light_length * jnp.stack([jnp.cos(el) * jnp.sin(az), jnp.sin(el), jnp.cos(el) * jnp.cos(az)])
     p = base
+    for glaze in ("wash", "unlit"):  # a library mixture's proportions and amount
+        m = getattr(p, glaze)
+        if f"{glaze}.mix" in values:
+            m = eqx.tree_at(lambda q: q.proportions, m, values.pop(f"{glaze}.mix"))
+        if f"{glaze}.amount" in values:
+            m = eqx.tree_at(lambda q: q.amount, m, values.pop(f"{glaze}.amount"))
+        p = eqx.tree_at(lambda q, g=glaze: getattr(q, g), p, m) if m is not getattr(p, glaze) else p
     for glaze in ("wash", "unlit"):
         if f"{glaze}.K" not in values and f"{glaze}.S" not in values:
             continue  # kept as it is (a library mixture stays one)
@@ -387,6 +446,17 @@ def _shade_look(view: _LookView, params: Params, look: wl.Look) -> Any:
 _GLAZE_INPUTS = ("wash", "unlit", "wash.K", "wash.S", "unlit.K", "unlit.S", "paper")
 
 
+def _varying(free: Sequence[str]) -> tuple[bool, ...]:
+    """Which of `_GLAZE_INPUTS` depend on the fitted parameters `free` (the `varying` of `_glaze`).
+
+    The thicknesses vary with the shading constants and the light; a glaze's K and S when fitted, or with
+    its library mixture's proportions or amount; the paper when fitted.
+    """
+    thick = {"gain", "bias", "wash_reduction", "k_wash", "k_unlit", "k_specular", "shininess", "light"}
+    moves = {f"{g}.{w}": {f"{g}.{w}", f"{g}.mix", f"{g}.amount"} for g in ("wash", "unlit") for w in ("K", "S")}
+    return (bool(thick & set(free)),) * 2 + tuple(bool(moves.get(n, {n}) & set(free)) for n in _GLAZE_INPUTS[2:])
+
+
 def _glaze(inputs: tuple[Any, ...], varying: tuple[bool, ...]) -> Any:
     r"""`shading.glaze`, arranged so that its derivative is cheap to push many tangents through.
 
@@ -484,7 +554,8 @@ def fit_image(
       taken from the first).
     - `fit`: the parameter names (see `FITTABLE`), a list or comma-separated text;
       look parameters (`watercolour.edges.darkening`, ...) need the scenes' look
-      to have that effect on.
+      to have that effect on; a mixture's (`wash.mix`, `wash.amount`, ...) need
+      that glaze to be a mixture of library pigments.
     - `start`: starting parameters (default: the first scene's).
     - `loss`: `"linear"` (linear RGB) or `"lab"` (CIELAB).
     - `solver`: `"lm"` (Levenberg-Marquardt), `"gauss-newton"`, `"dogleg"` or `"bfgs"`.
@@ -527,10 +598,8 @@ def fit_image(
     views = _views(target_list, scene_list, base, dtype)
     light_length = float(np.linalg.norm(np.asarray(base.light, np.float64)))
     cast = lambda a: jnp.asarray(a, dtype) if np.asarray(a).dtype.kind == "f" else a  # noqa: E731
-    thick = {"gain", "bias", "wash_reduction", "k_wash", "k_unlit", "k_specular", "shininess", "light"}
-    varying = (bool(thick & set(free)),) * 2 + tuple(n in free for n in _GLAZE_INPUTS[2:])
     problem = _Problem(views=tuple(views), base=jax.tree.map(cast, base), light_length=jnp.asarray(light_length, dtype),
-                       loss=loss, varying=varying, look=jax.tree.map(cast, base_look))  # fmt: skip
+                       loss=loss, varying=_varying(free), look=jax.tree.map(cast, base_look))  # fmt: skip
     y0 = {k: jnp.asarray(v, dtype) for k, v in _encode(base, free, base_look).items()}
     tol = 1e-6 if dtype == jnp.float64 else 1e-4
     opt = _make_solver(solver, rtol if rtol is not None else tol, atol if atol is not None else tol)

@@ -20,6 +20,14 @@ The layout JSON written beside it gives the boxes `fit-swatch` needs (pixel
 coordinates of the photo *as displayed*), and the generator returns the truth:
 the pigment, the paper and the ink.
 
+`make_mixture_card` paints a card of a mixable library's pigments instead
+(`diffwash.library`, e.g. `data/libraries/ntu-four.json`), each patch one
+pigment or a mixture (`("P1+P4", "1+2")`: coats of each in one layer): the
+layer's optical depths per band come from the library's mixing law (step 1 is
+done per band, over the library's paper and over a smooth spectrum of the ink,
+and seen in linear sRGB through the library's observation); steps 2-5 are the
+same. Its layout names each patch's `pigment` and `coats`.
+
 **References:**
 
 - C. J. Curtis et al., "Computer-Generated Watercolor", SIGGRAPH 1997 (glazes
@@ -39,16 +47,19 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import equinox as eqx
 import numpy as np
 from PIL import Image
 from scipy.ndimage import gaussian_filter
 
-from . import colorimetry, km
+from . import colorimetry, km, mixing, spectral
 from ._io import atomic_paths, image_format_for, refuse_overwriting_inputs, write_png
+from .library import Library
 from .pigments import Pigment
 from .shading import DEFAULT_PAPER
 
-__all__ = ["CameraEffects", "SwatchCard", "make_swatch_card", "save_swatch_card", "DEFAULT_INK", "IDEAL"]
+__all__ = ["CameraEffects", "SwatchCard", "make_swatch_card", "make_mixture_card", "save_swatch_card", "DEFAULT_INK",
+           "IDEAL"]  # fmt: skip
 
 #: Linear reflectance of the black ink band (an ivory-black-like ink, slightly bluish).
 DEFAULT_INK = (0.035, 0.035, 0.04)
@@ -99,22 +110,75 @@ class SwatchCard:
 
     - `photo`: the photo as displayed, display sRGB in [0, 1], (H, W, 3).
     - `layout`: the layout (dict, the `fit-swatch` layout format).
-    - `pigment`, `paper`, `ink`: the truth (pigment; linear reflectance of paper and ink).
+    - `pigment`, `paper`, `ink`: the truth (pigment, or None for a card of a library's pigments; linear
+      reflectance of paper and ink).
     - `effects`: the `CameraEffects` used.
+    - `library`, `amount_per_coat`, `patch_colours`: a mixture card's truth (`make_mixture_card`; None
+      otherwise): the library, its amount of one coat, and the linear reflectance (sRGB) of each of the
+      layout's patches, an even layer over the bare ground as a perfect camera would see it, (N, 3).
     """
 
     photo: np.ndarray
     layout: dict[str, Any]
-    pigment: Pigment
+    pigment: Pigment | None
     paper: np.ndarray
     ink: np.ndarray | None
     effects: CameraEffects = field(default_factory=CameraEffects)
+    patch_colours: np.ndarray | None = None
+    library: Library | None = None
+    amount_per_coat: float | None = None
 
 
 def _smooth_noise(rng: np.random.Generator, shape: tuple[int, int], sigma: float) -> np.ndarray:
     """Zero-mean, unit-variance noise smoothed over about `sigma` pixels."""
     n = gaussian_filter(rng.standard_normal(shape), sigma, mode="wrap")
     return n / max(float(n.std()), 1e-12)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """Where things go on a card of `columns` patch columns: its size, the paper box, the black band, the patches.
+
+    `cells` are `(column, ground, box)` for each patch, in the layout's order (column by column, paper first).
+    """
+
+    H: int
+    W: int
+    margin: int
+    paper_box: list[int]
+    band: tuple[int, int] | None  # rows y0:y1 of the black band (it spans columns margin // 6 : W - margin // 6)
+    black_box: list[int] | None
+    cells: list[tuple[int, str, list[int]]]
+
+
+def _plan(columns: int, black: bool, patch: int) -> _Plan:
+    gap = patch // 2
+    margin = patch
+    W = 2 * margin + columns * patch + (columns - 1) * gap
+    rows = 2 if black else 1
+    H = 2 * margin + rows * patch + (rows - 1) * 2 * gap + patch // 2  # room for a paper box above
+    top = margin + patch // 2
+    paper_box = [margin, margin // 3, W - margin, top - patch // 6]
+    band, black_box, ground_rows = None, None, [("paper", top)]
+    if black:
+        y0 = top + patch + gap
+        y1 = y0 + patch + 2 * gap
+        band = (y0, y1)
+        black_box = [margin // 6 + 4, y0 + 4, margin - 6, y1 - 4]
+        ground_rows = [("paper", top), ("black", y0 + gap)]
+    cells = []
+    for j in range(columns):
+        x0 = margin + j * (patch + gap)
+        for name, y0 in ground_rows:
+            cells.append((j, name, [x0, y0, x0 + patch, y0 + patch]))
+    return _Plan(H=H, W=W, margin=margin, paper_box=paper_box, band=band, black_box=black_box, cells=cells)
+
+
+def _edge_profile(patch: int, edge_darkening: float) -> np.ndarray:
+    """A glaze's relative thickness over its patch: 1 inside, up to `1 + edge_darkening` at its edges."""
+    yy, xx = np.mgrid[0:patch, 0:patch]
+    edge = np.minimum.reduce([yy, xx, patch - 1 - yy, patch - 1 - xx]).astype(float)
+    return 1 + edge_darkening * np.exp(-edge / 2.0)
 
 
 def make_swatch_card(
@@ -148,47 +212,38 @@ def make_swatch_card(
     rng = np.random.default_rng(seed)
     paper = np.asarray(paper, np.float64)
     ink_rgb = np.asarray(ink, np.float64)
-    n = len(coats)
-    gap = patch // 2
-    margin = patch
-    W = 2 * margin + n * patch + (n - 1) * gap
-    rows = 2 if black else 1
-    H = 2 * margin + rows * patch + (rows - 1) * 2 * gap + patch // 2  # room for a paper box above
-    top = margin + patch // 2
+    plan = _plan(len(coats), black, patch)
+    H, W = plan.H, plan.W
 
     # The card's reflectance: paper with grain, the black band, then the glazes.
     ground = np.broadcast_to(paper, (H, W, 3)).copy()
     if effects.grain > 0:
         grain = 1 + effects.grain * _smooth_noise(rng, (H, W), 1.2)
         ground *= grain[..., None]
-    layout: dict[str, Any] = {"paper": {"box": [margin, margin // 3, W - margin, top - patch // 6],
-                                        "reflectance": paper.tolist()}}  # fmt: skip
-    if black:
-        y0 = top + patch + gap
-        y1 = y0 + patch + 2 * gap
-        ground[y0:y1, margin // 6 : W - margin // 6] = ink_rgb
-        layout["black"] = {"box": [margin // 6 + 4, y0 + 4, margin - 6, y1 - 4]}
-        ground_rows = [("paper", top), ("black", y0 + gap)]
-    else:
-        ground_rows = [("paper", top)]
+    layout: dict[str, Any] = {"paper": {"box": plan.paper_box, "reflectance": paper.tolist()}}
+    if plan.band is not None:
+        y0, y1 = plan.band
+        ground[y0:y1, plan.margin // 6 : W - plan.margin // 6] = ink_rgb
+        layout["black"] = {"box": plan.black_box}
     thickness = np.zeros((H, W))
+    profile = _edge_profile(patch, effects.edge_darkening)
     patches = []
-    for j, c in enumerate(coats):
-        x0 = margin + j * (patch + gap)
-        for name, y0 in ground_rows:
-            box = [x0, y0, x0 + patch, y0 + patch]
-            yy, xx = np.mgrid[0:patch, 0:patch]
-            edge = np.minimum.reduce([yy, xx, patch - 1 - yy, patch - 1 - xx]).astype(float)
-            t = float(c) * (1 + effects.edge_darkening * np.exp(-edge / 2.0))
-            thickness[y0 : y0 + patch, x0 : x0 + patch] = t
-            patches.append({"box": box, "coats": c, "ground": name})
+    for j, name, box in plan.cells:
+        x0, y0 = box[0], box[1]
+        thickness[y0 : y0 + patch, x0 : x0 + patch] = float(coats[j]) * profile
+        patches.append({"box": box, "coats": coats[j], "ground": name})
     layout["patches"] = patches
     if effects.unevenness > 0:
         thickness *= 1 + effects.unevenness * _smooth_noise(rng, (H, W), 4.0)
     R, T = km.layer(np.asarray(pigment.K), np.asarray(pigment.S), np.maximum(thickness, 0)[..., None])
     card = np.asarray(km.over(R, T, ground), np.float64)
+    return SwatchCard(photo=_photograph(card, effects, rng), layout=layout, pigment=pigment, paper=paper,
+                      ink=ink_rgb if black else None, effects=effects)  # fmt: skip
 
-    # The light and the camera.
+
+def _photograph(card: np.ndarray, effects: CameraEffects, rng: np.random.Generator) -> np.ndarray:
+    """The photo (display sRGB in [0, 1]) a camera takes of a card of linear reflectance `card`, (H, W, 3)."""
+    H, W, _ = card.shape
     yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
     cx, cy = (W - 1) / 2, (H - 1) / 2
     r2 = ((xx - cx) ** 2 + (yy - cy) ** 2) / (cx**2 + cy**2)
@@ -201,9 +256,133 @@ def make_swatch_card(
         signal = signal + sd * rng.standard_normal(signal.shape)
     if effects.blur > 0:
         signal = gaussian_filter(signal, (effects.blur, effects.blur, 0), mode="nearest")
-    photo = np.clip(np.asarray(colorimetry.srgb_encode(np.clip(signal, 0, 1)), np.float64), 0, 1)
-    return SwatchCard(photo=photo, layout=layout, pigment=pigment, paper=paper, ink=ink_rgb if black else None,
-                      effects=effects)  # fmt: skip
+    return np.clip(np.asarray(colorimetry.srgb_encode(np.clip(signal, 0, 1)), np.float64), 0, 1)
+
+
+def _mixture_patch(spec: Any, i: int) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    """`(pigment, coats)` of a mixture card's patch as names and coats of each (`"P1+P4", "1+2"` or tuples)."""
+    pigment, coats = spec
+    names = tuple(" ".join(n.split()) for n in (pigment.split("+") if isinstance(pigment, str) else pigment))
+    if isinstance(coats, str):
+        amounts = tuple(float(c) for c in coats.split("+"))
+    else:
+        amounts = tuple(float(c) for c in np.atleast_1d(np.asarray(coats, np.float64)))
+    if not names or any(not n for n in names) or len(amounts) != len(names):
+        raise ValueError(f"patches[{i}]: needs as many coats as pigments, got {spec!r}")
+    if not all(np.isfinite(a) and a >= 0 for a in amounts) or sum(amounts) <= 0:
+        raise ValueError(f"patches[{i}]: coats must be finite, >= 0 and > 0 in all, got {spec!r}")
+    return names, amounts
+
+
+def _smooth_spectrum(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.ndarray:
+    """A smooth, positive spectrum on `obs`'s bands whose linear sRGB is `linear_rgb` (three broad bumps)."""
+    if obs.wavelengths is None:
+        return np.asarray(linear_rgb, np.float64)
+    wl = np.asarray(obs.wavelengths, np.float64)
+    bumps = np.exp(-0.5 * ((wl[:, None] - np.array([450.0, 550.0, 620.0])) / 60) ** 2)
+    M = np.asarray(obs.to_rgb, np.float64).T @ bumps
+    return np.maximum(bumps @ np.linalg.solve(M, np.asarray(linear_rgb, np.float64)), 1e-4)
+
+
+@eqx.filter_jit
+def _paint(palette: mixing.Palette, A: Any, column: Any, thickness: Any, ground: Any, cell_amounts: Any, under: Any,
+           k2: float, obs: spectral.Observation) -> tuple[Any, Any]:  # fmt: skip
+    """A mixture card's linear sRGB, (H, W, 3), and its patches' even colours, (N, 3), in one compiled program.
+
+    Each pixel's layer is its column's (`column`, an index into the rows of amounts `A`; row 0 holds
+    nothing) with its optical depths scaled by `thickness`, over its ground spectrum.
+    """
+    Kx, Sx = palette.optical_depths(A)
+    t = thickness[..., None]
+    R, T = km.layer(Kx[column] * t, Sx[column] * t, 1.0)
+    card = mixing.saunderson_out(km.over(R, T, mixing.saunderson_in(ground, k2)), k2)
+    return obs.linear_srgb(card), obs.linear_srgb(palette.reflectance(cell_amounts, under, k2))
+
+
+def make_mixture_card(
+    library: Library,
+    patches: Sequence[tuple[Any, Any]],
+    *,
+    amount_per_coat: float | None = None,
+    paper: str = "paper",
+    black: bool = True,
+    ink: Sequence[float] = DEFAULT_INK,
+    effects: CameraEffects = CameraEffects(),
+    patch: int = 48,
+    seed: int = 0,
+) -> SwatchCard:
+    """Make a photo of a swatch card whose patches are a library's pigments, alone or mixed.
+
+    The truth is a mixable `diffwash.library.Library` (e.g. `data/libraries/ntu-four.json`, spectral):
+    each patch's layer, brushed from its pigments' amounts, has the optical depths `Kx`, `Sx` per band
+    of `diffwash.mixing` (its pair terms included), scaled pixel by pixel by the glaze's relative
+    thickness (uneven, darker at the edges, as `make_swatch_card`); its reflectance and transmittance
+    per band are composited with Kubelka-Munk (and the library's surface term) over the paper (the
+    library's ground `paper`, with grain) or over the black ink (a smooth spectrum of linear sRGB
+    `ink`), and seen in linear sRGB through the library's observation. The camera is
+    `make_swatch_card`'s.
+
+    **Arguments:**
+
+    - `library`: the library whose pigments are painted.
+    - `patches`: one column each: `(pigment, coats)`, e.g. `("P1", 2)` or `("P1+P4", "1+2")` (or tuples
+      `(("P1", "P4"), (1, 2))`): the coats of each pigment in one layer.
+    - `amount_per_coat`: the library's amount of one coat (default: its amount law's reference, where the
+      thickness is 1).
+    - `paper`: the library's ground the card is painted on.
+    - `black`, `ink`, `effects`, `patch`, `seed`: as `make_swatch_card`.
+
+    **Returns:**
+
+    A `SwatchCard` whose layout names every patch's pigments and coats, with `pigment` None and
+    `library` the truth.
+    """
+    specs = [_mixture_patch(spec, i) for i, spec in enumerate(patches)]
+    if not specs:
+        raise ValueError("a card needs at least one patch")
+    per_coat = float(library.palette.law.reference if amount_per_coat is None else amount_per_coat)
+    if not (np.isfinite(per_coat) and per_coat > 0):
+        raise ValueError(f"amount_per_coat must be > 0, got {amount_per_coat!r}")
+    rng = np.random.default_rng(seed)
+    obs = library.observation
+    paper_spec = library.ground_matrix([paper])[0]
+    ink_rgb = np.asarray(ink, np.float64)
+    ink_spec = _smooth_spectrum(ink_rgb, obs)
+    plan = _plan(len(specs), black, patch)
+    H, W = plan.H, plan.W
+
+    A = library.amounts([n for n, _ in specs], [tuple(per_coat * a for a in amts) for _, amts in specs])
+    ground = np.broadcast_to(paper_spec, (H, W, len(paper_spec))).copy()
+    if effects.grain > 0:
+        ground *= (1 + effects.grain * _smooth_noise(rng, (H, W), 1.2))[..., None]
+    paper_rgb = paper_spec @ np.asarray(obs.to_rgb, np.float64)
+    layout: dict[str, Any] = {"paper": {"box": plan.paper_box, "reflectance": paper_rgb.tolist()}}
+    if plan.band is not None:
+        y0, y1 = plan.band
+        ground[y0:y1, plan.margin // 6 : W - plan.margin // 6] = ink_spec
+        layout["black"] = {"box": plan.black_box}
+    column = np.zeros((H, W), int)  # column 0 is no paint
+    thickness = np.zeros((H, W))
+    profile = _edge_profile(patch, effects.edge_darkening)
+    cells = []
+    for j, name, box in plan.cells:
+        x0, y0 = box[0], box[1]
+        column[y0 : y0 + patch, x0 : x0 + patch] = j + 1
+        thickness[y0 : y0 + patch, x0 : x0 + patch] = profile
+        names, amounts = specs[j]
+        coats = amounts[0] if len(amounts) == 1 else "+".join(f"{a:g}" for a in amounts)
+        cells.append({"box": box, "pigment": "+".join(names), "coats": coats, "ground": name})
+    layout["patches"] = cells
+    if effects.unevenness > 0:
+        thickness *= 1 + effects.unevenness * _smooth_noise(rng, (H, W), 4.0)
+    under = np.stack([paper_spec if g == "paper" else ink_spec for _, g, _ in plan.cells])
+    card, colours = _paint(library.palette, np.concatenate([np.zeros((1, A.shape[1])), A]), column,
+                           np.maximum(thickness, 0), ground, A[[j for j, _, _ in plan.cells]], under,
+                           float(library.k2), obs)  # fmt: skip
+    card, colours = np.asarray(card, np.float64), np.asarray(colours, np.float64)
+    return SwatchCard(photo=_photograph(card, effects, rng), layout=layout, pigment=None, paper=paper_rgb,
+                      ink=ink_rgb if black else None, effects=effects, patch_colours=colours, library=library,
+                      amount_per_coat=per_coat)  # fmt: skip
 
 
 #: EXIF orientation -> how to store pixels so that the photo displays upright.
@@ -244,7 +423,12 @@ def save_swatch_card(
     layout_path = Path(layout_path) if layout_path is not None else photo_path.with_suffix(".json")
     refuse_overwriting_inputs({"photo": photo_path, "layout": layout_path}, [])
     stored = np.ascontiguousarray(_STORE[orientation](card.photo))
-    meta = {"generator": "diffwash.swatchcard", "pigment": card.pigment.to_dict(), "effects": asdict(card.effects)}
+    if card.library is not None:  # the truth: the library (without its fit record) and the amount of a coat
+        truth = {k: v for k, v in card.library.to_dict().items() if k != "fit"}
+        meta = {"generator": "diffwash.swatchcard", "library": truth, "amount_per_coat": card.amount_per_coat}
+    else:
+        meta = {"generator": "diffwash.swatchcard", "pigment": card.pigment.to_dict()}
+    meta["effects"] = asdict(card.effects)
     layout_text = json.dumps({**card.layout, "meta": meta}, indent=2, allow_nan=False) + "\n"
     # Both files or neither: each goes to a temporary name, and both are renamed once both are complete.
     with atomic_paths(photo_path, layout_path) as (photo_tmp, layout_tmp):

@@ -177,6 +177,9 @@ def json_file(base: st.SearchStrategy[Any]) -> st.SearchStrategy[bytes]:
 # Pigments and libraries.
 
 _NAMES = ("Cadmium Red", "cadmium  red", "CADMIUM RED", "Cobalt Blue", "Rose", " ", "", "Ünicode ß", "SS")
+#: A swatch-card patch's `pigment` and `coats` (layouts).
+_MIXTURES = ("P1", "P1+P4", "P1 + p1", "P1+P4+P10", "P1+", "+", "", " ", "paper", "P1+Black", 3, None, ["P1"])
+_MIXTURE_COATS = ("1+2", "1+1+1", "0+0", "1+-2", "1+x", "1+nan", "1+1e39", "2", "", "+", " 1 + 0.5 ", "1_0+1", [1, 2])
 
 
 def _rgb(draw: Any) -> list[float]:
@@ -310,6 +313,10 @@ def layout_docs(draw: Any) -> dict:
     doc["patches"] = [{"box": _box(draw), "coats": draw(st.floats(0.1, 8)),
                        "ground": draw(st.sampled_from(["paper", "black"]))}
                       for _ in range(draw(st.integers(1, 4)))]  # fmt: skip
+    for p in doc["patches"]:  # a patch may name its paint: one pigment or a mixture, coats of each
+        if draw(st.booleans()):
+            p["pigment"] = draw(st.sampled_from(_MIXTURES))
+            p["coats"] = draw(st.one_of(st.sampled_from(_MIXTURE_COATS), st.floats(0.1, 8)))
     if draw(st.booleans()):
         doc["name"] = draw(st.sampled_from(_NAMES))
     return doc

@@ -1,8 +1,10 @@
 """Fit a pigment's K and S (per coat) to photos of its swatch card (PHOTO --layout LAYOUT.json), or every pigment of
 a table of measured colours at once (--table MEASUREMENTS.csv), and write a pigment file (or library) with the
-fit's diagnostics. The layout and CSV formats are in docs/fitting.md; the Python equivalents are
-diffwash.fit.fit_swatches(PHOTO, LAYOUT) and diffwash.fit.fit_table(CSV). A fit that does not converge writes
-nothing and exits with status 1, unless --allow-unconverged.
+fit's diagnostics. Cards whose layouts hold several pigments, alone or mixed ("pigment": "P1+P4", "coats": "1+2"),
+are fitted jointly into a library, as a mixture table is. The layout and CSV formats are in docs/fitting.md; the
+Python equivalents are diffwash.fit.fit_swatches(PHOTO, LAYOUT), diffwash.fit.fit_swatch_mixtures(PHOTOS, LAYOUTS)
+and diffwash.fit.fit_table(CSV). A fit that does not converge writes nothing and exits with status 1, unless
+--allow-unconverged.
 """
 
 from __future__ import annotations
@@ -18,12 +20,16 @@ from ..fit import (
     PLAIN,
     SWATCH_MODEL,
     FitModel,
+    MixModel,
+    fit_swatch_mixtures,
     fit_swatches,
     fit_table,
     read_layout,
     read_table,
+    save_mixture_report,
     save_swatch_report,
     save_table_report,
+    swatch_pigments,
 )
 from . import _library_fit, add_image_limit, check_output
 
@@ -34,12 +40,14 @@ USES_JAX = True
 
 def add_arguments(p) -> None:
     p.add_argument("photos", nargs="*", metavar="PHOTO",
-                   help="photo(s) of one pigment's swatch card (PNG 8/16 bit, JPEG)")  # fmt: skip
+                   help="photo(s) of one pigment's swatch card (PNG 8/16 bit, JPEG), or of cards whose layouts name "
+                        "several pigments, alone or mixed (fitted jointly into a library)")  # fmt: skip
     p.add_argument("--layout", action="append", metavar="LAYOUT.json",
                    help="where the paper, black band and patches are in the photo (one per photo)")  # fmt: skip
     p.add_argument("--table", metavar="CSV", help="fit every pigment of a measurement table instead of a photo")
     p.add_argument("-o", "--output", required=True, metavar="JSON", help="the pigment (or library) file to write")
-    p.add_argument("--name", help="the pigment's name (default: the layout's 'name', else the photo's file name)")
+    p.add_argument("--name", help="the pigment's name (default: the layout's 'name', else the photo's file name); "
+                                  "on cards of several pigments, that of the patches that name none")
     p.add_argument("--report", metavar="PNG", help="also write a picture of observed vs fitted colours")
     p.add_argument("--linear", action="store_true", help="the table's r, g, b are linear reflectance, not sRGB")
     p.add_argument("--plain", action="store_true",
@@ -50,7 +58,7 @@ def add_arguments(p) -> None:
                    help="residuals (default: noise for photos -- weighted by each patch's noise, with intervals -- "
                         "de2000 for tables)")
     p.add_argument("--mixing", choices=("duncan", "weights"), default="duncan",
-                   help="spectral or mixture table: Duncan's concentration-weighted sums (default), or with a fitted "
+                   help="spectral or mixture table, or cards of several pigments: Duncan's concentration-weighted sums (default), or with a fitted "
                         "mixing weight per pigment (docs/mixing.md says what each gives on pairs never seen mixed)")
     p.add_argument("--refine", choices=("de2000", "none"),
                    help="spectral table: after the log-reflectance fit, refine in CIEDE2000 with a ridge towards its "
@@ -111,6 +119,8 @@ def _wrote(*paths: Path | None) -> None:
 
 def _run_photos(args, out: Path, report: Path | None) -> int:
     t0 = time.perf_counter()
+    if len(swatch_pigments(args.layout, name=args.name, default=Path(args.photos[0]).stem)) > 1:
+        return _run_mixture_photos(args, out, report, t0)
     model = SWATCH_MODEL
     if args.loss is not None and args.loss != SWATCH_MODEL.loss:
         model = FitModel(thickness="linear", loss=args.loss)
@@ -139,6 +149,43 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
             photo, _ = dio.read_image(args.photos[0])
             save_swatch_report(report_tmp, fit, photo, read_layout(args.layout[0]))
     _wrote(out, report)
+    print(f"done in {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
+    """Cards of several pigments, alone or mixed: one joint fit (`fit_swatch_mixtures`), one library."""
+    if args.loss is not None:
+        raise DiffwashError("does not apply to cards of several pigments (fitted jointly in CIEDE2000: "
+                            "docs/fitting.md)", field="--loss")  # fmt: skip
+    model = MixModel(weights=args.mixing == "weights")
+    fit = fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps)
+    n = len(args.photos)
+    mixtures = sum(len(set(q.pigments)) > 1 for q in fit.patches)
+    print(f"{len(fit.names)} pigments ({', '.join(fit.names)}) from {len(fit.patches)} patches ({mixtures} mixtures) "
+          f"in {n} photo{'s' if n > 1 else ''}, fitted jointly as smooth spectra seen through sRGB")  # fmt: skip
+    width = max(len("pigment"), *(len("+".join(q.pigments)) for q in fit.patches))
+    cw = max(len("coats"), *(len("+".join(f"{a:g}" for a in q.amounts)) for q in fit.patches))
+    print(f"  {'pigment':<{width}}  {'coats':>{cw}}  {'ground':6}  {'observed sRGB':>15}  {'fitted sRGB':>15}  "
+          f"{'CIEDE2000':>9}")  # fmt: skip
+    for q in fit.patches:
+        flag = "  (clipped: a bound)" if any(q.bound) else ""
+        coats = "+".join(f"{a:g}" for a in q.amounts)
+        print(f"  {'+'.join(q.pigments):<{width}}  {coats:>{cw}}  {q.ground:6}  {_srgb8(q.observed):>15}  "
+              f"{_srgb8(q.fitted):>15}  {q.delta_e:9.2f}{flag}")  # fmt: skip
+    status = "converged" if fit.converged else "did not converge"
+    print(f"  mean CIEDE2000 {fit.mean_delta_e:.2f} (max {max(q.delta_e for q in fit.patches):.2f}); "
+          f"Levenberg-Marquardt {status} in {fit.iterations} steps")  # fmt: skip
+    for c in fit.calibrations:
+        for note in c.notes:
+            print(f"  note: {note}")
+    _finish(fit.converged, args.allow_unconverged, "the fit")
+    with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
+        fit.save(out_tmp)
+        if report is not None:
+            save_mixture_report(report_tmp, fit.mixture, fit.measurements)
+    _wrote(out, report)
+    print(f"  a library of {len(fit.names)} mixable pigments (amounts in coats): diffwash predict {out} --table ...")
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0
 

@@ -7,6 +7,10 @@ Three fits, each a thin layer of data handling over optimistix least squares:
   patch is weighed by its own noise and the calibration's uncertainty is carried along, so the result
   has calibrated intervals (`SwatchFit.intervals`, `SwatchFit.predict_interval`) and says which channels
   the photo only bounds (the camera's noise floor, clipping).
+- `fit_swatch_mixtures(photos, layouts)`: several pigments from cards whose layouts name each patch's
+  paint, alone or mixed (`"pigment": "P1+P4", "coats": "1+2"`), fitted jointly by `fit_mixtures` into a
+  mixable library; `diffwash fit-swatch` takes this path when the layouts hold more than one pigment
+  (`swatch_pigments`).
 - `fit_table(csv)`: every pigment of a table of measured colours in one call (`jax.vmap`, or a loop);
   `diffwash fit-swatch --table MEASUREMENTS.csv`.
 - `fit_image(targets, scenes, fit=...)`: named scene parameters (K, S, gain, bias, thickness
@@ -32,6 +36,7 @@ from ._kmfit import FitModel as FitModel
 from ._photo import Layout as Layout
 from ._photo import parse_layout as parse_layout
 from ._photo import read_layout as read_layout
+from ._photo import swatch_pigments as swatch_pigments
 from ._report import save_image_report as save_image_report
 from ._report import save_mixture_report as save_mixture_report
 from ._report import save_swatch_report as save_swatch_report
@@ -40,6 +45,8 @@ from ._swatch import SWATCH_MODEL as SWATCH_MODEL
 from ._swatch import PatchResult as PatchResult
 from ._swatch import SwatchFit as SwatchFit
 from ._swatch import fit_swatches as fit_swatches
+from ._swatchmix import SwatchMixtureFit as SwatchMixtureFit
+from ._swatchmix import fit_swatch_mixtures as fit_swatch_mixtures
 from ._table import MeasurementTable as MeasurementTable
 from ._table import TableFit as TableFit
 from ._table import fit_table as fit_table

@@ -8,7 +8,8 @@ displayed (EXIF orientation applied; x to the right, y down; a box is
 {"paper":   {"box": [x0, y0, x1, y1], "reflectance": [0.92, 0.90, 0.84]},
  "black":   {"box": [x0, y0, x1, y1]},
  "patches": [{"box": [x0, y0, x1, y1], "coats": 1, "ground": "paper"},
-             {"box": [...], "coats": 2, "ground": "black"}],
+             {"box": [...], "coats": 2, "ground": "black"},
+             {"box": [...], "pigment": "P1+P4", "coats": "1+2", "ground": "paper"}],
  "name": "Cadmium Red"}
 ```
 
@@ -17,6 +18,14 @@ diffwash's paper `DEFAULT_PAPER` = (0.92, 0.90, 0.84). `black` (a box of the
 bare black band) is required when a patch lies on black. `coats` is the
 patch's thickness in coats (> 0, may be fractional). `name` is optional (the
 pigment's name). A `meta` object is ignored.
+
+A patch may name its paint: `pigment` is a pigment's name, or several joined
+by `+` for a mixture brushed as one layer (as in measurement tables,
+`diffwash.measurements`), and `coats` then gives the coats of each, a number
+for one pigment or as many `+`-joined numbers (>= 0, in all > 0) as there are
+pigments. A patch without `pigment` is of the card's pigment (the layout's
+`name`). Layouts that together name more than one pigment, or hold a mixture,
+are fitted jointly into a library (`diffwash.fit.fit_swatch_mixtures`).
 
 Calibration. The photo is linearised (the sRGB transfer function), then the
 camera is taken to have recorded `gain_c * light(x, y) * reflectance`:
@@ -52,11 +61,12 @@ from .._io import check_float32, finite_number, read_json
 from ..shading import DEFAULT_PAPER
 from ._noise import JpegSteps, trimmed_mean, pixel_noise
 
-__all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "Calibration", "calibrate", "PatchStats",
-           "patch_stats", "inner_box", "linearise"]  # fmt: skip
+__all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "patch_paints", "swatch_pigments", "Calibration",
+           "calibrate", "PatchStats", "patch_stats", "inner_box", "linearise"]  # fmt: skip
 
 GROUNDS = ("paper", "black")
 _LAYOUT_KEYS = {"paper", "black", "patches", "name", "meta"}
+_PATCH_KEYS = ("box", "coats", "ground", "pigment")
 
 
 @dataclass(frozen=True)
@@ -85,11 +95,24 @@ class Box:
 
 @dataclass(frozen=True)
 class Patch:
-    """A patch of the pigment: its box, thickness in coats, and the ground under it."""
+    """A patch: its box, thickness in coats, the ground under it and, if the layout names it, its paint.
+
+    `pigments` are the names the layout gives (empty: the card's pigment) and `amounts` the coats of each
+    (parallel to `pigments`); `coats` is the layer's thickness in coats in all (their sum).
+    """
 
     box: Box
     coats: float
     ground: str
+    pigments: tuple[str, ...] = ()
+    amounts: tuple[float, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The patch as layout-file JSON."""
+        if not self.pigments:
+            return {"box": self.box.tolist(), "coats": self.coats, "ground": self.ground}
+        coats = self.amounts[0] if len(self.amounts) == 1 else "+".join(f"{a:g}" for a in self.amounts)
+        return {"box": self.box.tolist(), "pigment": "+".join(self.pigments), "coats": coats, "ground": self.ground}
 
 
 @dataclass(frozen=True)
@@ -108,7 +131,7 @@ class Layout:
         out: dict[str, Any] = {"paper": {"box": self.paper.tolist(), "reflectance": self.paper_reflectance.tolist()}}
         if self.black is not None:
             out["black"] = {"box": self.black.tolist()}
-        out["patches"] = [{"box": p.box.tolist(), "coats": p.coats, "ground": p.ground} for p in self.patches]
+        out["patches"] = [p.to_dict() for p in self.patches]
         if self.name:
             out["name"] = self.name
         return out
@@ -181,29 +204,117 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
         if not isinstance(p, dict):
             raise _fail(f"must be a JSON object, got {type(p).__name__}", file, where)
         for k in p:
-            if k not in ("box", "coats", "ground"):
-                raise _fail("unknown key (expected box, coats, ground)", file, f"{where}.{k}")
+            if k not in _PATCH_KEYS:
+                raise _fail("unknown key (expected box, coats, ground, pigment)", file, f"{where}.{k}")
         for k in ("box", "coats", "ground"):
             if k not in p:
                 raise _fail("missing key", file, f"{where}.{k}")
         box = _box(p["box"], file, f"{where}.box", size)
-        coats = p["coats"]
-        if not finite_number(coats) or coats <= 0:
-            raise _fail(f"must be a number of coats > 0, got {coats!r}", file, f"{where}.coats")
-        check_float32(coats, file=file, field=f"{where}.coats")
+        names = _pigment_names(p["pigment"], file, f"{where}.pigment") if "pigment" in p else ()
+        amounts = _coats(p["coats"], max(len(names), 1), file, f"{where}.coats", p.get("pigment"))
         ground = p["ground"]
         if ground not in GROUNDS:
             raise _fail(f"unknown ground {ground!r} (must be 'paper' or 'black')", file, f"{where}.ground")
         if ground == "black" and black is None:
             raise _fail("lies on black, but the layout has no 'black' box of bare black to measure it", file,
                         f"{where}.ground")  # fmt: skip
-        patches.append(Patch(box=box, coats=float(coats), ground=ground))
+        patches.append(Patch(box=box, coats=float(sum(amounts)), ground=ground, pigments=names,
+                             amounts=amounts if names else ()))  # fmt: skip
     name = data.get("name")
     if name is not None and (not isinstance(name, str) or not name.strip()):
         raise _fail("must be a non-empty string", file, "name")
     return Layout(paper=paper_box, paper_reflectance=np.asarray(refl, np.float64), black=black,
                   patches=tuple(patches), name=name.strip() if name else None,
                   path=None if file is None else os.fspath(file))  # fmt: skip
+
+
+def _name_key(name: str) -> str:
+    """Pigment names match ignoring case and runs of spaces (as the libraries look them up)."""
+    return " ".join(name.casefold().split())
+
+
+def _pigment_names(value: Any, file: Any, fld: str) -> tuple[str, ...]:
+    """A patch's `pigment`: a name, or names joined by `+`; none empty, none a ground's name."""
+    if not isinstance(value, str) or not value.strip():
+        raise _fail(f"must be a pigment's name, or names joined by '+' for a mixture, got {value!r}", file, fld)
+    names = tuple(" ".join(n.split()) for n in value.split("+"))
+    if any(not n for n in names):
+        raise _fail(f"empty pigment name in {value.strip()!r}", file, fld)
+    grounds = [n for n in names if _name_key(n) in GROUNDS]
+    if grounds:
+        raise _fail(f"{grounds[0]!r} names a ground, not a pigment", file, fld)
+    return names
+
+
+def _coats(value: Any, n: int, file: Any, fld: str, pigment: Any) -> tuple[float, ...]:
+    """A patch's `coats`: a number (one pigment) or `n` numbers joined by `+` (>= 0 each, > 0 in all)."""
+    if isinstance(value, str):
+        texts = [t.strip() for t in value.split("+")]
+        amounts = []
+        for t in texts:
+            try:
+                v = float(t)
+            except ValueError:
+                raise _fail(f"not a number: {t!r} (coats are a number, or '+'-joined numbers for a mixture)", file,
+                            fld) from None  # fmt: skip
+            if not np.isfinite(v):
+                raise _fail(f"must be finite numbers of coats, got {value!r}", file, fld)
+            amounts.append(v)
+    elif finite_number(value):
+        amounts = [float(value)]
+    else:
+        raise _fail(f"must be a number of coats > 0, got {value!r} ('+'-joined numbers for a mixture)", file, fld)
+    if len(amounts) != n:
+        what = f"{n} pigments ({pigment.strip()})" if n > 1 else (f"1 pigment ({pigment.strip()})" if pigment
+                                                                  else "the card's one pigment")  # fmt: skip
+        k = len(amounts)
+        raise _fail(f"{k} number{'s' if k != 1 else ''} of coats for {what}: give one per pigment", file, fld)
+    for v in amounts:
+        check_float32(v, file=file, field=fld)
+    if n == 1 and amounts[0] <= 0:
+        raise _fail(f"must be a number of coats > 0, got {value!r}", file, fld)
+    if any(v < 0 for v in amounts):
+        raise _fail(f"the coats of each pigment must be >= 0, got {value!r}", file, fld)
+    if sum(amounts) <= 0:
+        raise _fail(f"a patch needs paint: the coats add up to 0 ({value!r})", file, fld)
+    return tuple(amounts)
+
+
+def patch_paints(layouts: list[Layout], *, name: str | None = None, default: str = "pigment"
+                 ) -> list[list[tuple[tuple[str, ...], tuple[float, ...]]]]:  # fmt: skip
+    """Each patch's pigments and the coats of each, per layout: `[[(names, coats), ...], ...]`.
+
+    A patch that names no pigment is of its card's pigment: `name` if given, else its layout's `name`,
+    else the first layout's `name`, else `default` (as `fit_swatches` names the pigment). Names that
+    match ignoring case and runs of spaces are one pigment, spelled as first met.
+    """
+    fallback = name or next((L.name for L in layouts if L.name), None) or default
+    spelling: dict[str, str] = {}
+    out = []
+    for L in layouts:
+        card = name or L.name or fallback
+        rows = []
+        for p in L.patches:
+            names, amounts = (p.pigments, p.amounts) if p.pigments else ((card,), (p.coats,))
+            rows.append((tuple(spelling.setdefault(_name_key(n), n) for n in names), amounts))
+        out.append(rows)
+    return out
+
+
+def swatch_pigments(layout: Any, *, name: str | None = None, default: str = "pigment") -> list[str]:
+    """The distinct pigments that swatch-card layouts hold, in the order first met (`patch_paints`).
+
+    **Arguments:** `layout`, a `Layout`, a layout file's path, its parsed JSON, or a list of them; `name` and
+    `default`, the pigment of patches that name none (as `fit_swatches`'s `name`, and its fallback).
+
+    **Returns:** the names. More than one means the cards are fitted jointly into a library
+    (`fit_swatch_mixtures`); one, a single pigment (`fit_swatches`).
+    """
+    items = layout if isinstance(layout, (list, tuple)) else [layout]
+    layouts = [L if isinstance(L, Layout) else read_layout(L) if isinstance(L, (str, os.PathLike)) else parse_layout(L)
+               for L in items]  # fmt: skip
+    return list(dict.fromkeys(n for rows in patch_paints(layouts, name=name, default=default)
+                              for names, _ in rows for n in names))  # fmt: skip
 
 
 def read_layout(path: str | os.PathLike, size: tuple[int, int] | None = None) -> Layout:

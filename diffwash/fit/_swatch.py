@@ -42,7 +42,7 @@ from ._noise import camera_noise_floor, jpeg_steps
 from ._noisefit import Observations, Uncertainty, fit_noise, uncertainty
 from ._noisefit import _prediction_and_jacobian
 from ._photo import Calibration, Layout, PatchStats, calibrate, inner_box, linearise, parse_layout, patch_stats
-from ._photo import read_layout
+from ._photo import read_layout, swatch_pigments
 from ._table import delta_e_displayed
 
 __all__ = ["SWATCH_MODEL", "PatchResult", "SwatchFit", "fit_swatches"]
@@ -66,7 +66,9 @@ class PatchResult:
     between them; `weight` is the patch's weight in the fit (lower when partly
     clipped); `bound` says per channel whether the observation was only a bound;
     `se` is the standard error of `observed` (3,) (its noise); `floor` says per
-    channel whether it is at the camera's noise floor.
+    channel whether it is at the camera's noise floor. A patch of a mixture card
+    (`fit_swatch_mixtures`) names its `pigments` and the coats of each (`amounts`);
+    `coats` is then their sum.
     """
 
     photo: int
@@ -81,9 +83,13 @@ class PatchResult:
     spread: np.ndarray
     se: np.ndarray | None = None
     floor: list[bool] | None = None
+    pigments: tuple[str, ...] = ()
+    amounts: tuple[float, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
-        out = {"photo": self.photo, "box": self.box, "coats": self.coats, "ground": self.ground,
+        paint = {"pigment": "+".join(self.pigments), "amount": "+".join(f"{a:g}" for a in self.amounts)}
+        out = {"photo": self.photo, "box": self.box, **(paint if self.pigments else {}), "coats": self.coats,
+               "ground": self.ground,
                "observed": [round(float(v), 6) for v in self.observed],
                "fitted": [round(float(v), 6) for v in self.fitted], "delta_e_2000": round(float(self.delta_e), 4),
                "weight": round(float(self.weight), 4), "clipped": self.bound}  # fmt: skip
@@ -280,6 +286,11 @@ def _identifiability(patches: list[tuple[float, str]], sd: dict[str, np.ndarray]
     return text
 
 
+def _default_name(photo: Any) -> str:
+    """The pigment's name when neither the caller nor a layout gives one: the photo's file name."""
+    return Path(photo).stem if isinstance(photo, (str, os.PathLike)) else "pigment"
+
+
 def _load_photo(photo: Any) -> tuple[np.ndarray, int, str | None]:
     if isinstance(photo, (str, os.PathLike)):
         display, bits = read_image(photo)
@@ -378,7 +389,7 @@ def fit_swatches(
     - `layout`: its layout (path, parsed JSON, or `Layout`; format in
       `diffwash.fit._photo`), or a list matching `photo`.
     - `name`: the pigment's name (default: the layout's `name`, else the photo's
-      file name).
+      file name); patches that name their `pigment` are of that pigment.
     - `model`: the `FitModel` (default `SWATCH_MODEL`: residuals weighted by
       each patch's noise, the calibration fitted jointly; a perceptual loss,
       e.g. `FitModel(thickness="linear", loss="cie94")`, fits unweighted and
@@ -391,17 +402,21 @@ def fit_swatches(
     iterations, convergence, identifiability, intervals, channels at the
     noise floor). Bad input (boxes outside the photo or empty, an unknown
     ground, a saturated or missing paper box, NaN) raises `DiffwashError`
-    naming the file and the field.
+    naming the file and the field; so do layouts that hold more than one
+    pigment, alone or mixed (`swatch_pigments`): those are fitted jointly by
+    `fit_swatch_mixtures`.
     """
     photos = list(photo) if isinstance(photo, (list, tuple)) else [photo]
     layouts = list(layout) if isinstance(layout, (list, tuple)) else [layout]
     if len(photos) != len(layouts):
         raise DiffwashError(f"got {len(photos)} photos but {len(layouts)} layouts")
     measured = [_measure(ph, lay) for ph, lay in zip(photos, layouts)]
-    if name is None:
-        name = next((m.layout.name for m in measured if m.layout.name), None)
-    if name is None:
-        name = Path(photos[0]).stem if isinstance(photos[0], (str, os.PathLike)) else "pigment"
+    names = swatch_pigments([m.layout for m in measured], name=name, default=_default_name(photos[0]))
+    if len(names) > 1:
+        raise DiffwashError(f"the layouts hold {len(names)} pigments ({', '.join(names)}), alone or mixed: fit them "
+                            f"jointly into a library with fit_swatch_mixtures (diffwash fit-swatch does)",
+                            file=measured[0].layout.path)  # fmt: skip
+    name = names[0]
     paper = np.mean([m.layout.paper_reflectance for m in measured], axis=0)
     blacks = [m.black.rgb for m in measured if m.black is not None]
     black = np.mean(blacks, axis=0) if blacks else None

@@ -337,7 +337,7 @@ def _points(surf: Any, clip, vertices, faces, normals, vis, *, width, height) ->
 
 def look_image(
     surf: Any, clip: Array, wash: Array, unlit: Array, vertices, faces, normals, camera, params, vis, wc: Watercolour,
-    light_tri: Array | None, *, width: int, height: int,
+    light_tri: Array | None, light_depth: Array | None = None, *, width: int, height: int,
 ) -> Array:  # fmt: skip
     r"""The look on the model's thicknesses at the covered pixels: `(H * W, 3)` linear RGB, the whole image.
 
@@ -347,7 +347,8 @@ def look_image(
     and docs/watercolour.md describe. Differentiable in every leaf of
     `wc.look`, `wc.mix`, the pigments, the constants and the geometry.
     `light_tri`: the shadow map's triangles (`ops.rasterize` of
-    `look.light_clip`), or None without shadows.
+    `look.light_clip`), or None without shadows; `light_depth`: the shadow map
+    (`shadow_depth`) when the light and the mesh are fixed, else None (computed here).
     """
     look = wc.look
     dtype = wash.dtype
@@ -357,7 +358,8 @@ def look_image(
     if wc.shadow:
         vp = wl.light_view_projection(vertices, params.light)
         # A barrier: fused into the lookups' gathers, the map would be recomputed at every tap.
-        depth = jax.lax.optimization_barrier(wl.light_depth(vertices, faces, vp, light_tri))
+        depth = light_depth if light_depth is not None else wl.light_depth(vertices, faces, vp, light_tri)
+        depth = jax.lax.optimization_barrier(jnp.asarray(depth, dtype))
         offset = 1.5 * 2 / (jnp.linalg.norm(vp[0, :3]) * light_tri.shape[0])  # look.normal_offset, traced
         sh = wl.shadow(depth, vp, P, look.shadow_bias, normals=N, normal_offset=offset)
     if wc.tam is not None:
@@ -401,6 +403,13 @@ def _bary(surf, clip, faces, vis, width, height):
     if surf.bary is not None:
         return surf.bary
     return barycentrics(clip, faces, vis.pixel_tri, vis.pixels, width, height)[0]
+
+
+@jax.jit
+def shadow_depth(vertices: Any, faces: Any, light: Any, light_tri: Array) -> Array:
+    """The shadow map of a fixed light and mesh (`look.light_depth`), computed once outside the look's kernel."""
+    v = jnp.asarray(vertices)
+    return wl.light_depth(v, faces, wl.light_view_projection(v, jnp.asarray(light, v.dtype)), light_tri)
 
 
 def shadow_triangles(vertices: Any, faces: Any, light: Any, size: int = wl.SHADOW_MAP_SIZE) -> Array:

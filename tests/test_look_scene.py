@@ -230,3 +230,17 @@ def test_look_parameters_fit_to_a_target_render(grad_scene):
     sol = optx.least_squares(lambda y, _: (image(list(y)) - target).reshape(-1), optx.LevenbergMarquardt(rtol=1e-8, atol=1e-10),
                              start, max_steps=50)  # fmt: skip
     np.testing.assert_allclose(np.asarray(sol.value), [4.0, 0.35, 0.3], rtol=1e-4)
+
+
+def test_the_shadow_map_made_once_outside_is_the_kernels_and_the_light_stays_differentiable(grad_scene):
+    # A fixed light and mesh: the map is computed once, outside the kernel; a traced light: inside, differentiable.
+    p = grad_scene.params
+    render_at = lambda light: diffwash.render(grad_scene, eqx.tree_at(lambda q: q.light, p, light))  # noqa: E731
+    outside = render_at(p.light)
+    inside, vjp = jax.vjp(render_at, p.light)
+    np.testing.assert_allclose(np.asarray(outside), np.asarray(inside), rtol=0, atol=1e-12)
+    weights = jnp.asarray(np.random.default_rng(3).uniform(size=(24, 24, 3)))
+    (g,) = vjp(weights)
+    d, h = jnp.asarray([0.3, -0.2, 0.1]), 1e-5
+    fd = (jnp.sum(render_at(p.light + h * d) * weights) - jnp.sum(render_at(p.light - h * d) * weights)) / (2 * h)
+    assert abs(float(jnp.vdot(g, d)) - float(fd)) <= 1e-4 * max(abs(float(fd)), 1e-3)

@@ -31,6 +31,7 @@ from ..fit import (
     save_table_report,
     swatch_pigments,
 )
+from ..fit._swatchmix import CARD_PRIOR
 from . import _library_fit, add_image_limit, check_output
 
 NAME = "fit-swatch"
@@ -158,7 +159,7 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
     if args.loss is not None:
         raise DiffwashError("does not apply to cards of several pigments (fitted jointly in CIEDE2000: "
                             "docs/fitting.md)", field="--loss")  # fmt: skip
-    model = MixModel(weights=args.mixing == "weights")
+    model = MixModel(weights=args.mixing == "weights", prior=CARD_PRIOR)
     fit = fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps)
     n = len(args.photos)
     mixtures = sum(len(set(q.pigments)) > 1 for q in fit.patches)

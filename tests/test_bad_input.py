@@ -132,13 +132,17 @@ def test_decompression_bomb_is_refused_from_its_header_with_little_memory(tmp_pa
 def test_the_image_limit_is_configurable(cli, card, tmp_path, monkeypatch):
     photo, layout = card
     w, h = opened(photo).size
-    (tmp_path / "bad.json").write_text(json.dumps({"paper": {"box": [0, 0, 5, 5]}, "patches": []}))
+    # A layout whose one fault shows only once the photo is read (a box outside it).
+    bad = json.loads(Path(layout).read_text())
+    bad["patches"] = bad["patches"][:1]
+    bad["patches"][0]["box"] = [0, 0, w + 10, 5]
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
     small = str(w * h - 1)
     refused(cli("fit-swatch", photo.name, "--layout", "bad.json", "-o", "p.json", "--max-image-pixels", small),
             f"card.png: is {w}x{h}", f"over the limit of {w * h - 1:,}")  # fmt: skip
     # Raised (or at the default), the photo is read, and the next problem is the layout's.
     refused(cli("fit-swatch", photo.name, "--layout", "bad.json", "-o", "p.json", "--max-image-pixels", str(w * h)),
-            "bad.json: patches: must be a non-empty list")  # fmt: skip
+            f"bad.json: patches[0].box: [0, 0, {w + 10}, 5] lies outside the {w}x{h} photo")  # fmt: skip
     monkeypatch.setenv("DIFFWASH_MAX_IMAGE_PIXELS", small)
     refused(cli("fit-swatch", photo.name, "--layout", "bad.json", "-o", "p.json"), "card.png: is", "over the limit")
     monkeypatch.setenv("DIFFWASH_MAX_IMAGE_PIXELS", "lots")

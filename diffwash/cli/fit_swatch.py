@@ -17,6 +17,7 @@ import numpy as np
 from .. import DiffwashError, FailureError, colorimetry
 from .. import io as dio
 from ..fit import (
+    CARD_PRIOR,
     PLAIN,
     SWATCH_MODEL,
     FitModel,
@@ -31,7 +32,6 @@ from ..fit import (
     save_table_report,
     swatch_pigments,
 )
-from ..fit._swatchmix import CARD_PRIOR
 from . import _library_fit, add_image_limit, check_output
 
 NAME = "fit-swatch"

@@ -31,6 +31,25 @@ def write_spectral_table(path: Path, m) -> Path:
     return path
 
 
+def write_fit_target(d: Path, truth: dict, start: dict):
+    """For fit-image tests: truth.json and start.json in `d`, and truth's render as target.png (16-bit sRGB).
+
+    Returns the render in linear RGB."""
+    import json
+
+    import numpy as np
+
+    import diffwash
+    from diffwash import colorimetry
+    from diffwash._io import write_png
+
+    (d / "truth.json").write_text(json.dumps(truth))
+    (d / "start.json").write_text(json.dumps(start))
+    linear = np.asarray(diffwash.render(diffwash.load_scene(d / "truth.json")))
+    write_png(d / "target.png", np.asarray(colorimetry.srgb_encode(np.clip(linear, 0, 1))), bits=16)
+    return linear
+
+
 def knot_scene(mesh: str, width: int, height: int, shading: str = "per-pixel", **extra):
     """The tests' knot scene: a torus knot of `data/meshes/`, rose wash, ultramarine unlit glaze,
     constants away from their defaults (so every term of the model shows)."""

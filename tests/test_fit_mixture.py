@@ -11,11 +11,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from conftest import DATA
+from conftest import DATA, write_fit_target
 
 import diffwash
-from diffwash import colorimetry
-from diffwash._io import write_png
 from diffwash.cli import main
 from diffwash.fit import FITTABLE, fit_image
 from diffwash.fit._image import _decode, _encode, _gauges, _prepare_view, _Problem, _residuals, _varying
@@ -42,11 +40,7 @@ def _scene_dict(glazes) -> dict:
 def files(tmp_path_factory):
     """truth.json, its render (linear, and a 16-bit sRGB PNG), and start.json with other mixtures."""
     d = tmp_path_factory.mktemp("mixture")
-    (d / "truth.json").write_text(json.dumps(_scene_dict(TRUTH)))
-    (d / "start.json").write_text(json.dumps(_scene_dict(START)))
-    linear = np.asarray(diffwash.render(diffwash.load_scene(d / "truth.json")))
-    write_png(d / "target.png", np.asarray(colorimetry.srgb_encode(np.clip(linear, 0, 1))), bits=16)
-    return d, linear
+    return d, write_fit_target(d, _scene_dict(TRUTH), _scene_dict(START))
 
 
 def _check_written(path, rel):

@@ -312,6 +312,15 @@ class _Photo:
     patches: list[PatchStats]
 
 
+def _measure_all(photo: Any, layout: Any) -> tuple[list[Any], list[Any], list[_Photo]]:
+    """The photos and layouts (one or a list of each, as many layouts as photos) and each photo measured."""
+    photos = list(photo) if isinstance(photo, (list, tuple)) else [photo]
+    layouts = list(layout) if isinstance(layout, (list, tuple)) else [layout]
+    if len(photos) != len(layouts):
+        raise DiffwashError(f"got {len(photos)} photos but {len(layouts)} layouts")
+    return photos, layouts, [_measure(ph, lay) for ph, lay in zip(photos, layouts)]
+
+
 def _measure(photo: Any, layout: Any) -> _Photo:
     """Read, validate, calibrate and measure one photo (its patches, paper and black boxes)."""
     display, bits, photo_path = _load_photo(photo)
@@ -406,11 +415,7 @@ def fit_swatches(
     pigment, alone or mixed (`swatch_pigments`): those are fitted jointly by
     `fit_swatch_mixtures`.
     """
-    photos = list(photo) if isinstance(photo, (list, tuple)) else [photo]
-    layouts = list(layout) if isinstance(layout, (list, tuple)) else [layout]
-    if len(photos) != len(layouts):
-        raise DiffwashError(f"got {len(photos)} photos but {len(layouts)} layouts")
-    measured = [_measure(ph, lay) for ph, lay in zip(photos, layouts)]
+    photos, layouts, measured = _measure_all(photo, layout)
     names = swatch_pigments([m.layout for m in measured], name=name, default=_default_name(photos[0]))
     if len(names) > 1:
         raise DiffwashError(f"the layouts hold {len(names)} pigments ({', '.join(names)}), alone or mixed: fit them "

@@ -33,7 +33,7 @@ from ..library import Library
 from ..measurements import Measurements
 from ._mixfit import MixModel, MixtureFit, fit_mixtures
 from ._photo import GROUNDS, Calibration, _name_key, patch_paints
-from ._swatch import PatchResult, _bounds, _default_name, _measure, _Photo
+from ._swatch import PatchResult, _bounds, _default_name, _measure_all, _Photo
 from ._table import delta_e_displayed
 
 __all__ = ["SwatchMixtureFit", "fit_swatch_mixtures"]
@@ -149,11 +149,7 @@ def fit_swatch_mixtures(
     A `SwatchMixtureFit`: the library (amounts in coats) and each patch's observed and fitted colour. Bad
     input raises `DiffwashError` naming the file and the field, as `fit_swatches`.
     """
-    photos = list(photo) if isinstance(photo, (list, tuple)) else [photo]
-    layouts = list(layout) if isinstance(layout, (list, tuple)) else [layout]
-    if len(photos) != len(layouts):
-        raise DiffwashError(f"got {len(photos)} photos but {len(layouts)} layouts")
-    measured = [_measure(ph, lay) for ph, lay in zip(photos, layouts)]
+    photos, _, measured = _measure_all(photo, layout)
     paints = patch_paints([m.layout for m in measured], name=name, default=_default_name(photos[0]))
     for m, rows in zip(measured, paints):
         for i, (names, _) in enumerate(rows):

@@ -10,11 +10,11 @@
    shading), no hatching. Rounds alternate; medians.
 2. OpenGL (llvmpipe without a GPU), --gl-size^2, the showcase's 100k triangles: the exported LUT shader
    (the plain preview) against the look's passes (`diffwash.look._frame.LookFrame`: geometry pass into a
-   float G-buffer with per-pixel shadow lookups and hatching, three edge passes on a reduced grid, the final
+   float G-buffer with the shadow looked up per vertex and hatching, three edge passes on a reduced grid, the final
    pass with the 3D mix LUT), with and without hatching. Frames alternate in rounds; medians and the median
    of per-round ratios.
 2b. The same frame pass by pass (`LookFrame.passes()`, `ctx.finish()` around each), and its geometry pass
-   with hatching off, the shadow per vertex, and depth only (vertex processing and triangle setup).
+   with hatching off, the shadow per pixel, and depth only (vertex processing and triangle setup).
 3. Agreement: `diffwash preview` (the look's OpenGL passes) against `diffwash.render`, the showcase at
    512^2, as 8-bit sRGB PSNR.
 4. The 3D mix LUT's error by size.
@@ -236,9 +236,9 @@ def gl_profile(size: int, rounds: int) -> dict:
 
         return run
 
-    steps["geometry: shadow per vertex (not per pixel)"] = variant(True, "vertex")
-    steps["geometry: no hatching"] = variant(False, "pixel")
-    steps["geometry: no hatching, shadow per vertex"] = variant(False, "vertex")
+    steps["geometry: shadow per pixel (not per vertex)"] = variant(True, "pixel")
+    steps["geometry: no hatching"] = variant(False, "vertex")
+    steps["geometry: no hatching, shadow per pixel"] = variant(False, "pixel")
     head = _gl.header("glsl330")
     depth = ctx.program(vertex_shader=head + "layout(location = 0) in vec3 position;\nuniform mat4 model;\nuniform mat4 view_projection;\n"
                         "void main() { gl_Position = view_projection * (model * vec4(position, 1.0)); }\n",

@@ -73,7 +73,7 @@ class LookExport:
 def _shaders(target: str, height: int, hatching: bool) -> dict[str, str]:
     head = _gl.header(target)
     depth_vert, depth_frag = glsl_depth_pass()
-    geometry_vert, geometry_frag = geometry_sources(target, hatching, "pixel")
+    geometry_vert, geometry_frag = geometry_sources(target, hatching)
     edges = glsl_edge_passes(edge_downsample(height))
     return {
         "depth.vert": head + depth_vert,

@@ -341,7 +341,8 @@ def look_image(
 ) -> Array:  # fmt: skip
     r"""The look on the model's thicknesses at the covered pixels: `(H * W, 3)` linear RGB, the whole image.
 
-    Surface terms (shadow, hatching) at the pixels, the G-buffer, image terms
+    Surface terms (shadow, hatching) at the pixels (the shadow looked up per vertex and interpolated,
+    `vertex_shadow`), the G-buffer, image terms
     (edges, strokes, paper, unevenness), the glaze (mixed pigments where the
     scene has a mix map) and the paper's shading, as `diffwash.look.compose`
     and docs/watercolour.md describe. Differentiable in every leaf of
@@ -353,15 +354,11 @@ def look_image(
     look = wc.look
     dtype = wash.dtype
     sh = hatch = None
-    if wc.shadow or wc.tam is not None:
+    if wc.tam is not None:
         P, N = jax.lax.optimization_barrier(_points(surf, clip, vertices, faces, normals, vis, width=width, height=height))
     if wc.shadow:
-        vp = wl.light_view_projection(vertices, params.light)
-        # A barrier: fused into the lookups' gathers, the map would be recomputed at every tap.
-        depth = light_depth if light_depth is not None else wl.light_depth(vertices, faces, vp, light_tri)
-        depth = jax.lax.optimization_barrier(jnp.asarray(depth, dtype))
-        offset = 1.5 * 2 / (jnp.linalg.norm(vp[0, :3]) * light_tri.shape[0])  # look.normal_offset, traced
-        sh = wl.shadow(depth, vp, P, look.shadow_bias, normals=N, normal_offset=offset)
+        sh_v = vertex_shadow(vertices, faces, normals, params.light, look.shadow_bias, light_tri, light_depth)
+        sh = interpolate(sh_v, faces, vis.pixel_tri, _bary(surf, clip, faces, vis, width, height))
     if wc.tam is not None:
         eye = jnp.asarray(camera.eye, dtype)
         fwd = shading.safe_normalize(jnp.asarray(camera.target, dtype) - eye)
@@ -397,6 +394,23 @@ def look_image(
     image = jnp.broadcast_to(jnp.asarray(params.paper, dtype), (n, 3)).at[pixels].set(rgb, mode="drop", unique_indices=True)
     shade = _tile(screen[..., 1:2], height, width, dtype)[..., 0]
     return wl.paper_shading(image.reshape(height, width, 3), shade, look.paper_shading).reshape(n, 3)
+
+
+def vertex_shadow(vertices, faces, normals, light, bias, light_tri: Array, light_depth: Array | None = None) -> Array:
+    """The self-shadow factor at each vertex, `(V,)`: `look.shadow` at the vertices (offset along their normals).
+
+    The renderer interpolates it over the triangles, as the exported shaders' vertex stage does
+    (`geometry_sources(shadow="vertex")`): the map's 9 reads per vertex, not per covered pixel.
+    `light_depth`: the shadow map of a fixed light and mesh, else None (computed from `light_tri`).
+    """
+    v = jnp.asarray(vertices)
+    vp = wl.light_view_projection(v, light)
+    # A barrier: fused into the lookups' gathers, the map would be recomputed at every tap.
+    depth = light_depth if light_depth is not None else wl.light_depth(v, faces, vp, light_tri)
+    depth = jax.lax.optimization_barrier(jnp.asarray(depth, v.dtype))
+    offset = 1.5 * 2 / (jnp.linalg.norm(vp[0, :3]) * light_tri.shape[0])  # look.normal_offset, traced
+    n = shading.safe_normalize(jnp.asarray(normals, v.dtype))
+    return wl.shadow(depth, vp, v, bias, normals=n, normal_offset=offset)
 
 
 def _bary(surf, clip, faces, vis, width, height):

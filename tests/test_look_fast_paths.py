@@ -106,3 +106,47 @@ def test_apart_is_the_identity_differentiable_and_batchable():
     np.testing.assert_allclose(np.asarray(jax.vmap(f)(jnp.stack([x, x]))), np.stack([f(x), f(x)]), rtol=1e-15)
     nan = jnp.asarray([jnp.nan, 1.0])
     assert np.isnan(np.asarray(apart(lambda a: a + 1, nan))[0])  # the other branch computes the same
+
+
+def test_magnified_everywhere_reads_one_level_with_the_same_numbers_and_derivatives(tam):
+    # Every footprint below a texel: the level of detail is clamped at 0 everywhere, so hatch_ink_at reads
+    # level 0 alone (half the reads). Values and derivatives are those of every tone and level blended.
+    P, N, _, tau = _points(n=80, seed=6)
+    tau = jnp.clip(tau, 0.01, 0.99) + 0.003
+    scale = 40.0
+    pixel = jnp.asarray(np.random.default_rng(7).uniform(0.001, 0.02, tau.shape))  # x = pixel * scale < 1
+    assert float(jnp.max(_hatching.hatch_lod(pixel, scale, len(tam)))) == 0.0
+    weights = jnp.asarray(np.random.default_rng(8).normal(size=tau.shape))
+
+    def f(P, N, pixel, tau):
+        return jnp.vdot(weights, _hatching.hatch_ink_at(tam, P, N, pixel, scale, tau))
+
+    def ref(P, N, pixel, tau):
+        return jnp.vdot(weights, _hatching.hatch_ink(_hatching.hatch_samples(tam, P, N, pixel, scale), tau))
+
+    assert float(f(P, N, pixel, tau)) == pytest.approx(float(ref(P, N, pixel, tau)), rel=1e-12)
+    got, want = jax.grad(f, argnums=(0, 1, 2, 3))(P, N, pixel, tau), jax.grad(ref, argnums=(0, 1, 2, 3))(P, N, pixel, tau)
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(np.asarray(g), np.asarray(w), rtol=1e-10, atol=1e-10)
+    # One point minified: both levels are read again, and still agree.
+    pixel2 = pixel.at[0].set(0.2)
+    assert float(f(P, N, pixel2, tau)) == pytest.approx(float(ref(P, N, pixel2, tau)), rel=1e-12)
+    # The choice is a conditional whose one-level branch has half the texel reads of the general one.
+    jaxpr = jax.make_jaxpr(lambda P: _hatching.hatch_ink_at(tam, P, N, pixel, scale, tau))(P).jaxpr
+    conds = [e for e in jaxpr.eqns if e.primitive.name == "cond"]
+    reads = sorted(_count(b.jaxpr, "gather") for b in conds[-1].params["branches"])
+    assert reads[0] > 0 and 2 * reads[0] == reads[1]
+
+
+def _count(jaxpr, name):
+    """How many `name` equations `jaxpr` holds, those of its inner jaxprs (conditionals, jit) included."""
+    n = 0
+    for e in jaxpr.eqns:
+        n += e.primitive.name == name
+        for v in e.params.values():
+            for j in v if isinstance(v, (tuple, list)) else [v]:
+                if hasattr(j, "jaxpr") and hasattr(j.jaxpr, "eqns"):
+                    n += _count(j.jaxpr, name)
+                elif hasattr(j, "eqns"):
+                    n += _count(j, name)
+    return n

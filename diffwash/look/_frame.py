@@ -45,8 +45,9 @@ uniform mat4 view_projection;
 def geometry_sources(target: str, hatching: bool, shadow: str = "vertex") -> tuple[str, str]:
     """The look's geometry pass for `target`: the model's thicknesses, shadow (and hatching), mix and stroke into the G-buffer.
 
-    `shadow="vertex"`: the shadow lookup runs in the vertex shader and is interpolated (as in the JAX
-    kernel's default); `"pixel"`: per fragment. Returns the vertex and fragment shader.
+    `shadow="vertex"` (what the preview, the viewer and export draw): the shadow lookup runs in the vertex
+    shader and is interpolated, as `diffwash.render` does (`_watercolour.vertex_shadow`); `"pixel"`: per
+    fragment (for measurements). Returns the vertex and fragment shader.
     """
     head = _gl.header(target)
     model = functions_source(target, colour="km")  # the thickness model (the colour is the look's)
@@ -140,7 +141,7 @@ class LookFrame:
         self.vbo = ctx.buffer(np.ascontiguousarray(attrs).tobytes())
         self.ibo = ctx.buffer(np.asarray(mesh.faces, np.uint32).tobytes())
         hatching = wc.tam is not None
-        self.geometry = _geometry_program(ctx, hatching, "pixel")
+        self.geometry = _geometry_program(ctx, hatching)
         self.vao = ctx.vertex_array(self.geometry, [(self.vbo, "3f 3f 1f 1f", "position", "normal", "mix_in", "stroke_in")], self.ibo)
         self.uniforms = {**uniform_values(scene, p, aspect=W / H), **look_uniforms(wc.look, wc.pigments, height=H)}
         fov = np.radians(float(scene.camera.fov_y))

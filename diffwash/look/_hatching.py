@@ -395,4 +395,14 @@ def hatch_ink_at(
             ink = ink + w[..., p] * (level(flat, uv, level0, *tone) * (1 - fl) + level(flat, uv, level1, *tone) * fl)
         return ink
 
-    return apart(reads, flat, jnp.asarray(P), w, fl, level0, level1, first, second, ink_k, g)
+    def reads_finest(flat, P, w, fl, level0, level1, *tone):  # every point magnified: level 0 alone, weight 1
+        ink = 0.0
+        for p, uv in enumerate(triplanar_uv(P, scale, int(sizes_np[0]))):
+            ink = ink + w[..., p] * level(flat, uv, level0, *tone)
+        return ink
+
+    # Where the map is magnified at every point (the level of detail clamped at 0, as in a close-up or the
+    # showcase at 512^2), the second level's weight is 0 everywhere: read one level, half the reads, the same
+    # value and the same gradient (the clamp passes none to the level's weight).
+    args = (flat, jnp.asarray(P), w, fl, level0, level1, first, second, ink_k, g)
+    return jax.lax.cond(jnp.any(lod > 0), lambda *a: apart(reads, *a), lambda *a: apart(reads_finest, *a), *args)

@@ -30,15 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from ._glsl import uniform_values
 from .look import _gl
 from .look._edges import edge_downsample, glsl_edge_passes
-from .look._frame import MIX_LUT_RANGE, MIX_LUT_SIZE, geometry_sources
-from .look._look import glsl_final_pass, look_uniforms
-from .look._mix import bake_mix_lut, glaze_mix
-from .look._shadow import SHADOW_MAP_SIZE, glsl_depth_pass, light_view_projection, normal_offset
+from .look._frame import geometry_sources, look_frame_uniforms, look_textures
+from .look._look import glsl_final_pass
+from .look._shadow import SHADOW_MAP_SIZE, glsl_depth_pass
 
-__all__ = ["LookExport", "look_export", "retarget", "write_look", "LOOK_FOLDER", "LOOK_ATTRIBUTES"]
+__all__ = ["LOOK_ATTRIBUTES", "LOOK_FOLDER", "LookExport", "look_export", "retarget", "write_look"]
 
 #: The folder of an export that holds the look's passes.
 LOOK_FOLDER = "look"
@@ -86,51 +84,6 @@ def _shaders(target: str, height: int, hatching: bool) -> dict[str, str]:
         "edge_columns.frag": head + edges["blur_columns"],
         "final.frag": head + "#define LOOK_OUTPUT_SRGB 1\n" + glsl_final_pass(height=height),
     }
-
-
-def _textures(scene: Any, p: Any) -> tuple[dict[str, list[np.ndarray]], float, float]:
-    """The look's input textures (as `LookFrame` uploads them) and the mix LUT's ranges."""
-    wc = scene.watercolour
-    wash_max, unlit_max = MIX_LUT_RANGE * float(p.wash_max), MIX_LUT_RANGE * float(p.unlit_max)
-    wash_b = p.wash if wc.wash_b is None else wc.wash_b
-    unlit_b = p.unlit if wc.unlit_b is None else wc.unlit_b
-    table = bake_mix_lut(lambda q, w, u, m: glaze_mix(q, wash_b, unlit_b, w, u, m), p, MIX_LUT_SIZE, wash_max=wash_max, unlit_max=unlit_max)
-    c = np.asarray(wc.screen, np.float32)
-    out = {
-        "mix_lut": [np.ascontiguousarray(np.asarray(table, np.float32))],
-        "screen0": [np.ascontiguousarray(c[..., :4])],
-        "screen1": [np.ascontiguousarray(c[..., 4:6])],
-    }
-    if wc.tam is not None:
-        tam = [np.asarray(level, np.float32) for level in wc.tam]
-        for i in range(2):
-            out[f"tam{i}"] = [np.ascontiguousarray(level[..., 4 * i : 4 * i + 4]) for level in tam]
-    return out, wash_max, unlit_max
-
-
-def _uniforms(scene: Any, p: Any, wash_max: float, unlit_max: float) -> dict[str, Any]:
-    """Every uniform of the passes, from the values `LookFrame` sets."""
-    wc = scene.watercolour
-    W, H = scene.width, scene.height
-    u = {**uniform_values(scene, p, aspect=W / H), **look_uniforms(wc.look, wc.pigments, height=H)}
-    cam = scene.camera
-    forward = np.asarray(cam.target, np.float64) - np.asarray(cam.eye, np.float64)
-    light_vp = np.asarray(light_view_projection(np.asarray(scene.mesh.vertices), np.asarray(p.light)), np.float64)
-    u.update(
-        eye_forward=(forward / np.linalg.norm(forward)).tolist(),
-        look_pixel_scale=float(2 * np.tan(np.radians(float(cam.fov_y)) / 2) / H),
-        look_light_view_projection=light_vp.tolist(),
-        look_shadow_normal_offset=normal_offset(light_vp.astype(np.float32)),
-        lut_wash_max=wash_max,
-        lut_unlit_max=unlit_max,
-        look_flip_rows=1,
-        look_rows=H,
-    )
-    if not wc.shadow:
-        u["look_shadow"] = 0.0
-    if wc.tam is not None:
-        u["look_hatch_scale"] = float(wc.hatch_scale)
-    return {k: [float(x) for x in v] if isinstance(v, tuple) else v for k, v in u.items()}
 
 
 def _target(size, fmt: str, filt: str, depth: bool = False) -> dict[str, Any]:
@@ -198,7 +151,7 @@ def look_export(scene: Any, params: Any = None, *, target: str = "webgl2") -> Lo
     if wc is None:
         raise ValueError("the scene has no watercolour look")
     p = scene.params if params is None else params
-    textures, wash_max, unlit_max = _textures(scene, p)
+    textures, wash_max, unlit_max = look_textures(scene, p)
     mesh_vertices = len(np.asarray(scene.mesh.vertices))
     zeros = np.zeros(mesh_vertices, np.float32)
     attributes = {
@@ -210,7 +163,7 @@ def look_export(scene: Any, params: Any = None, *, target: str = "webgl2") -> Lo
         shaders=_shaders(target, scene.height, wc.tam is not None),
         graph=_graph(scene, textures),
         textures=textures,
-        uniforms=_uniforms(scene, p, wash_max, unlit_max),
+        uniforms=look_frame_uniforms(scene, p, wash_max, unlit_max),
         attributes=attributes,
     )
 

@@ -25,7 +25,7 @@ from ._look import glsl_final_pass, glsl_surface, look_uniforms
 from ._mix import bake_mix_lut, glaze_mix
 from ._shadow import SHADOW_MAP_SIZE, glsl_depth_pass, glsl_shadow, light_view_projection, normal_offset
 
-__all__ = ["LookFrame", "MIX_LUT_SIZE", "MIX_LUT_RANGE", "geometry_sources"]
+__all__ = ["LookFrame", "MIX_LUT_SIZE", "MIX_LUT_RANGE", "geometry_sources", "look_textures", "look_frame_uniforms"]
 
 #: The 3D mix LUT's size (wash, unlit, mix): docs/watercolour.md measures its error by size.
 MIX_LUT_SIZE = (64, 64, 16)
@@ -104,6 +104,53 @@ void main() {
     return vert, frag
 
 
+def look_textures(scene: Any, p: Any) -> tuple[dict[str, list[np.ndarray]], float, float]:
+    """The look's input textures, each a list of levels (the mix LUT, the screen tile in two, the tonal art
+    map's two halves), and the mix LUT's wash and unlit ranges: what `LookFrame` uploads and export writes."""
+    wc = scene.watercolour
+    wash_max, unlit_max = MIX_LUT_RANGE * float(p.wash_max), MIX_LUT_RANGE * float(p.unlit_max)
+    wash_b = p.wash if wc.wash_b is None else wc.wash_b
+    unlit_b = p.unlit if wc.unlit_b is None else wc.unlit_b
+    table = bake_mix_lut(lambda q, w, u, m: glaze_mix(q, wash_b, unlit_b, w, u, m), p, MIX_LUT_SIZE, wash_max=wash_max, unlit_max=unlit_max)
+    c = np.asarray(wc.screen, np.float32)
+    out = {
+        "mix_lut": [np.ascontiguousarray(np.asarray(table, np.float32))],
+        "screen0": [np.ascontiguousarray(c[..., :4])],
+        "screen1": [np.ascontiguousarray(c[..., 4:6])],
+    }
+    if wc.tam is not None:
+        tam = [np.asarray(level, np.float32) for level in wc.tam]
+        for i in range(2):
+            out[f"tam{i}"] = [np.ascontiguousarray(level[..., 4 * i : 4 * i + 4]) for level in tam]
+    return out, wash_max, unlit_max
+
+
+def look_frame_uniforms(scene: Any, p: Any, wash_max: float, unlit_max: float, size: tuple[int, int] | None = None) -> dict[str, Any]:
+    """Every uniform of the look's passes for a `size = (width, height)` frame (default: the scene's image),
+    as JSON-ready values (matrices as row-major nested lists): what `LookFrame` sets and export writes."""
+    wc = scene.watercolour
+    W, H = size or (scene.width, scene.height)
+    u = {**uniform_values(scene, p, aspect=W / H), **look_uniforms(wc.look, wc.pigments, height=H)}
+    cam = scene.camera
+    forward = np.asarray(cam.target, np.float64) - np.asarray(cam.eye, np.float64)
+    light_vp = np.asarray(light_view_projection(np.asarray(scene.mesh.vertices), np.asarray(p.light)), np.float64)
+    u.update(
+        eye_forward=(forward / np.linalg.norm(forward)).tolist(),
+        look_pixel_scale=float(2 * np.tan(np.radians(float(cam.fov_y)) / 2) / H),
+        look_light_view_projection=light_vp.tolist(),
+        look_shadow_normal_offset=normal_offset(light_vp.astype(np.float32)),
+        lut_wash_max=wash_max,
+        lut_unlit_max=unlit_max,
+        look_flip_rows=1,
+        look_rows=H,
+    )
+    if not wc.shadow:
+        u["look_shadow"] = 0.0
+    if wc.tam is not None:
+        u["look_hatch_scale"] = float(wc.hatch_scale)
+    return {k: [float(x) for x in v] if isinstance(v, tuple) else v for k, v in u.items()}
+
+
 def _geometry_program(ctx, hatching: bool, shadow: str = "vertex"):
     vert, frag = geometry_sources("glsl330", hatching, shadow)
     return ctx.program(vertex_shader=vert, fragment_shader=frag)
@@ -143,31 +190,18 @@ class LookFrame:
         hatching = wc.tam is not None
         self.geometry = _geometry_program(ctx, hatching)
         self.vao = ctx.vertex_array(self.geometry, [(self.vbo, "3f 3f 1f 1f", "position", "normal", "mix_in", "stroke_in")], self.ibo)
-        self.uniforms = {**uniform_values(scene, p, aspect=W / H), **look_uniforms(wc.look, wc.pigments, height=H)}
-        fov = np.radians(float(scene.camera.fov_y))
-        fwd = np.asarray(scene.camera.target, np.float64) - np.asarray(scene.camera.eye, np.float64)
-        self.uniforms.update(eye_forward=list(fwd / np.linalg.norm(fwd)), look_pixel_scale=2 * np.tan(fov / 2) / H)
+        textures, wash_max, unlit_max = look_textures(scene, p)
+        self.uniforms = look_frame_uniforms(scene, p, wash_max, unlit_max, size=(W, H))
         # The light's depth map: rendered once (the light and the mesh do not move).
-        self.light_vp = np.asarray(light_view_projection(np.asarray(mesh.vertices), np.asarray(p.light)), np.float32)
-        self.uniforms["look_light_view_projection"] = self.light_vp
-        self.uniforms["look_shadow_normal_offset"] = normal_offset(self.light_vp)
-        if not wc.shadow:
-            self.uniforms["look_shadow"] = 0.0
+        self.light_vp = np.asarray(self.uniforms["look_light_view_projection"], np.float32)
         self.shadow_map = self._depth_pass(SHADOW_MAP_SIZE)
-        wash_max, unlit_max = MIX_LUT_RANGE * float(p.wash_max), MIX_LUT_RANGE * float(p.unlit_max)
-        wash_b = p.wash if wc.wash_b is None else wc.wash_b
-        unlit_b = p.unlit if wc.unlit_b is None else wc.unlit_b
-        table = bake_mix_lut(lambda q, w, u, m: glaze_mix(q, wash_b, unlit_b, w, u, m), p, MIX_LUT_SIZE, wash_max=wash_max, unlit_max=unlit_max)
-        self.uniforms.update(lut_wash_max=wash_max, lut_unlit_max=unlit_max, look_flip_rows=1, look_rows=H)
-        self.lut = _gl.texture3d(ctx, table)
-        c = np.asarray(wc.screen, np.float32)
-        second = np.concatenate([c[..., 4:6], np.zeros(c.shape[:2] + (2,), np.float32)], axis=-1)
-        self.s0, self.s1 = _gl.texture(ctx, np.ascontiguousarray(c[..., :4])), _gl.texture(ctx, np.ascontiguousarray(second))
+        self.lut = _gl.texture3d(ctx, textures["mix_lut"][0])
+        second = textures["screen1"][0]
+        second = np.concatenate([second, np.zeros(second.shape[:2] + (2,), np.float32)], axis=-1)
+        self.s0, self.s1 = _gl.texture(ctx, textures["screen0"][0]), _gl.texture(ctx, second)
         self.tam = None
         if hatching:
-            tam = [np.asarray(level, np.float32) for level in wc.tam]
-            self.tam = [_gl.texture(ctx, tam[0][..., 4 * i : 4 * i + 4], repeat=True, mipmaps=[lv[..., 4 * i : 4 * i + 4] for lv in tam[1:]]) for i in range(2)]
-            self.uniforms["look_hatch_scale"] = float(wc.hatch_scale)
+            self.tam = [_gl.texture(ctx, textures[f"tam{i}"][0], repeat=True, mipmaps=textures[f"tam{i}"][1:]) for i in range(2)]
         self._targets(W, H)
 
     def _targets(self, W: int, H: int) -> None:
@@ -273,9 +307,7 @@ def _set_uniforms(prog, values):
     for name, v in values.items():
         if name not in prog:
             continue
-        if name in ("model", "view_projection", "normal_matrix"):
-            prog[name].write(np.asarray(v, np.float32).T.tobytes())
-        elif isinstance(v, np.ndarray) and v.shape == (4, 4):
+        if name in ("model", "view_projection", "normal_matrix") or np.ndim(v) == 2:  # matrices, row-major
             prog[name].write(np.asarray(v, np.float32).T.tobytes())
         elif name == "look_edge_weights":
             prog[name].write(np.asarray(v, np.float32).tobytes())

@@ -161,3 +161,32 @@ def test_bad_mixture_patches_are_refused_in_one_line(tmp_path, monkeypatch, caps
     assert err.count("\n") == 1 and "Traceback" not in err, err
     assert err.startswith(f"diffwash: error: bad.json: {field}: ") and words in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json", "card.png"]  # nothing written
+
+
+def test_swatch_card_cli_paints_a_librarys_pigments_as_make_mixture_card_does(run_cli, tmp_path):
+    lib = DATA / "libraries" / "ntu-four.json"
+    r = run_cli("swatch-card", "--library", lib, "--patches", "P1:1, P4:2 ,P1+P4:1+2", "--amount-per-coat", "0.02",
+                "--seed", "3", "-o", "cli.png")  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    card = make_mixture_card(library.load_library(lib), [("P1", 1), ("P4", 2), ("P1+P4", "1+2")], amount_per_coat=0.02, seed=3)
+    save_swatch_card(card, tmp_path / "py.png")
+    from diffwash._io import read_image
+
+    # The command computes in float32, the tests in float64: a pixel may round to the next 8-bit level.
+    np.testing.assert_allclose(read_image(tmp_path / "cli.png")[0], read_image(tmp_path / "py.png")[0], rtol=0, atol=1.01 / 255)
+    assert json.loads((tmp_path / "cli.json").read_text()) == json.loads((tmp_path / "py.json").read_text())
+
+
+@pytest.mark.parametrize("args, field", [
+    (["--patches", "P1:1,P9:1"], "--patches"),            # a pigment the library lacks
+    (["--patches", "P1+P4:1"], "--patches"),              # a coat count per pigment
+    (["--patches", "P1:x"], "--patches"),
+    (["--patches", "P1:0"], "--patches"),
+    (["--patches", "P1:1", "P1"], "PIGMENT"),             # a pigment and a library
+    (["--patches", "P1:1", "--coats", "1,2"], "--coats"),
+    (["--patches", "P1:1", "--amount-per-coat", "-1"], "--amount-per-coat"),
+])  # fmt: skip
+def test_swatch_card_cli_refuses_bad_mixture_cards_in_one_line(run_cli, tmp_path, args, field):
+    r = run_cli("swatch-card", "--library", DATA / "libraries" / "ntu-four.json", *args, "-o", "card.png")
+    assert r.returncode == 2 and field in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not (tmp_path / "card.png").exists() and not (tmp_path / "card.json").exists()

@@ -102,14 +102,15 @@ def _graph(scene: Any, textures: dict[str, list[np.ndarray]]) -> dict[str, Any]:
         "screen1": {"kind": "2d", "format": "RG32F", "filter": "nearest", "wrap": "repeat",
                     "layout": "turbulence (unlit), dispersion (unlit)"},
     }  # fmt: skip
-    for i in range(2):
-        if f"tam{i}" in textures:
-            inputs[f"tam{i}"] = {"kind": "2d", "format": "RGBA32F", "filter": "linear_mipmap_linear", "wrap": "repeat",
-                                 "layout": f"ink coverage of tones {4 * i + 1}-{4 * i + 4}; level k is the map's own mip level k"}  # fmt: skip
+    if "tam" in textures:
+        inputs["tam"] = {"kind": "2d", "format": "RG32F", "filter": "linear_mipmap_linear", "wrap": "repeat",
+                         "layout": "the tonal art map's atlas (diffwash.look.tam_atlas): 8 tiles in rows, tile k the ink of tones "
+                                   "k and k + 1 (R, G; tone 0 blank), each padded by rows wrapped from its other end; level k is "
+                                   "the map's own mip level k"}  # fmt: skip
     for name, spec in inputs.items():
         spec["files"] = [f"{name}.npy"] if len(textures[name]) == 1 else [f"{name}_level{k}.npy" for k in range(len(textures[name]))]
         spec["shape"] = list(textures[name][0].shape)
-    geometry_inputs = {"look_shadow_map": "shadow_map", **{f"look_tam{i}": f"tam{i}" for i in range(2) if f"tam{i}" in textures}}
+    geometry_inputs = {"look_shadow_map": "shadow_map", **({"look_tam": "tam"} if "tam" in textures else {})}
     fullscreen = {"vertex": "fullscreen.vert", "draw": "fullscreen", "depth_test": False, "cull": False, "clear": None}
     mesh = {"draw": "mesh", "depth_test": True}
     return {
@@ -171,7 +172,7 @@ def look_export(scene: Any, params: Any = None, *, target: str = "webgl2") -> Lo
 def retarget(look: LookExport, target: str) -> LookExport:
     """The same passes with their shaders for another target (the textures and uniforms do not change)."""
     height = look.graph["size"][1]
-    return dataclasses.replace(look, target=target, shaders=_shaders(target, height, "tam0" in look.textures))
+    return dataclasses.replace(look, target=target, shaders=_shaders(target, height, "tam" in look.textures))
 
 
 def write_look(folder: Path, look: LookExport) -> list[Path]:

@@ -3,6 +3,8 @@
 Float textures in and out, so agreement is to float32 rounding (~1e-5), not to 8-bit levels.
 """
 
+import functools
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -117,7 +119,9 @@ def test_shadow_lookup(ctx):
     assert close.mean() > 0.98, close.mean()
 
 
-def test_hatching_samples(ctx):
+def test_hatching_ink(ctx):
+    # The shader's atlas (one fetch per projection for both tones) against hatch_ink_at (the renderer's
+    # reads of the map's own levels), at levels from 0 to past the last and tones across the range.
     rng = _rng(3)
     tam = _hatching.tonal_art_map(size=32, levels=3, seed=2)
     scale = 40.0
@@ -125,25 +129,25 @@ def test_hatching_samples(ctx):
     N = rng.normal(0, 1, (H, W, 3))
     N /= np.linalg.norm(N, axis=-1, keepdims=True)
     pixel = rng.uniform(0.005, 0.2, (H, W))  # lods from 0 to past the last level
+    tau = rng.uniform(-0.1, 1.1, (H, W))
     frag = (
         "uniform sampler2D pos; uniform sampler2D nrm; layout(location = 0) out vec4 o0;\n"
         + _hatching.glsl_hatching(levels=3, size=32)
-        + """uniform int half_;
-void main() {
+        + """void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
-    vec4 s = texelFetch(pos, p, 0);
-    vec4 h0, h1;
-    look_hatch_samples(s.xyz, texelFetch(nrm, p, 0).xyz, s.w, h0, h1);
-    o0 = half_ == 0 ? h0 : h1;
+    vec4 s = texelFetch(pos, p, 0), n = texelFetch(nrm, p, 0);
+    o0 = vec4(look_hatch_ink(s.xyz, n.xyz, s.w, n.w));
 }
 """
     )
-    tams = [_gl.texture(ctx, tam[0][..., 4 * i : 4 * i + 4], repeat=True, mipmaps=[lv[..., 4 * i : 4 * i + 4] for lv in tam[1:]]) for i in range(2)]
+    atlas = _hatching.tam_atlas(tam)
+    assert [a.shape for a in atlas] == [(8 * 40, 32, 2), (8 * 20, 16, 2), (8 * 10, 8, 2)]  # each level half the last
     pos = np.concatenate([P, pixel[..., None]], -1).astype(np.float32)
-    tex = {"look_tam0": tams[0], "look_tam1": tams[1], "pos": _gl.texture(ctx, pos), "nrm": _gl.texture(ctx, N.astype(np.float32))}
-    out = np.concatenate([_gl.run_fullscreen(ctx, frag, (W, H), textures=tex, uniforms={"look_hatch_scale": scale, "half_": i}) for i in range(2)], -1)
-    p64 = pos.astype(np.float64)
-    want = _hatching.hatch_samples([np.asarray(t, np.float64) for t in tam], p64[..., :3], N.astype(np.float32).astype(np.float64), p64[..., 3], scale)
+    nrm = np.concatenate([N, tau[..., None]], -1).astype(np.float32)
+    tex = {"look_tam": _gl.texture(ctx, atlas[0], repeat=True, mipmaps=atlas[1:]), "pos": _gl.texture(ctx, pos), "nrm": _gl.texture(ctx, nrm)}
+    out = _gl.run_fullscreen(ctx, frag, (W, H), textures=tex, uniforms={"look_hatch_scale": scale})[..., 0]
+    p64, n64 = pos.astype(np.float64), nrm.astype(np.float64)
+    want = _hatching.hatch_ink_at([np.asarray(t, np.float64) for t in tam], p64[..., :3], n64[..., :3], p64[..., 3], scale, n64[..., 3])
     np.testing.assert_allclose(out, want, atol=1e-4)
 
 
@@ -168,28 +172,35 @@ def test_mix_lut_lookup(ctx):
 def test_surface_terms(ctx):
     rng = _rng(5)
     look = _look.Look(shadow=0.6, hatching=0.45)
+    tam = _hatching.tonal_art_map(size=32, levels=3, seed=2)
+    scale = 40.0
     t = rng.uniform(0, 1.2, (H, W, 2))
-    extra = np.stack([rng.uniform(0, 1, (H, W)), rng.normal(0, 1, (H, W)), np.zeros((H, W)), np.zeros((H, W))], -1)
-    hatch = rng.uniform(0, 1, (H, W, 8))
-    hatch.sort(axis=-1)
+    P = rng.uniform(-1, 1, (H, W, 3))
+    N = rng.normal(0, 1, (H, W, 3))
+    N /= np.linalg.norm(N, axis=-1, keepdims=True)
+    shadow, pixel = rng.uniform(0, 1, (H, W)), rng.uniform(0.005, 0.2, (H, W))
     frag = (
-        "uniform sampler2D th; uniform sampler2D ex; uniform sampler2D h0; uniform sampler2D h1; layout(location = 0) out vec4 o;\n"
-        + _look.glsl_surface()
+        "uniform sampler2D th; uniform sampler2D pos; uniform sampler2D nrm; layout(location = 0) out vec4 o;\n"
+        + _look.glsl_surface(tam_levels=3, tam_size=32)
         + """void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
-    vec4 e = texelFetch(ex, p, 0);
-    o = vec4(look_surface(texelFetch(th, p, 0).rg, 1.3, e.x, texelFetch(h0, p, 0), texelFetch(h1, p, 0)), 0.0, 0.0);
+    vec4 th_ = texelFetch(th, p, 0), s = texelFetch(pos, p, 0), n = texelFetch(nrm, p, 0);
+    o = vec4(look_surface(th_.rg, 1.3, th_.b, s.xyz, n.xyz, s.w), 0.0, 0.0);
 }
 """
     )
-    f32 = lambda a: a.astype(np.float32)  # noqa: E731
-    tex = {"th": _gl.texture(ctx, f32(np.concatenate([t, 0 * t], -1))), "ex": _gl.texture(ctx, f32(extra)),
-           "h0": _gl.texture(ctx, f32(hatch[..., :4])), "h1": _gl.texture(ctx, f32(hatch[..., 4:]))}  # fmt: skip
-    out = _gl.run_fullscreen(ctx, frag, (W, H), textures=tex, uniforms={"look_shadow": 0.6, "look_hatching": 0.45})
+    f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+    atlas = _hatching.tam_atlas(tam)
+    tex = {"th": _gl.texture(ctx, f32(np.concatenate([t, shadow[..., None], 0 * shadow[..., None]], -1))),
+           "pos": _gl.texture(ctx, f32(np.concatenate([P, pixel[..., None]], -1))),
+           "nrm": _gl.texture(ctx, f32(np.concatenate([N, 0 * pixel[..., None]], -1))),
+           "look_tam": _gl.texture(ctx, atlas[0], repeat=True, mipmaps=atlas[1:])}  # fmt: skip
+    out = _gl.run_fullscreen(ctx, frag, (W, H), textures=tex, uniforms={"look_shadow": 0.6, "look_hatching": 0.45, "look_hatch_scale": scale})
     g = lambda a: f32(a).astype(np.float64)  # noqa: E731
-    w, u = _look.surface_terms(g(t[..., 0]), g(t[..., 1]), look, unlit_max=1.3, shadow=g(extra[..., 0]), hatch=g(hatch))
+    hatch = functools.partial(_hatching.hatch_ink_at, [np.asarray(x, np.float64) for x in tam], g(P), g(N), g(pixel), scale)
+    w, u = _look.surface_terms(g(t[..., 0]), g(t[..., 1]), look, unlit_max=1.3, shadow=g(shadow), hatch=hatch)
     np.testing.assert_allclose(out[..., 0], w, rtol=2e-6, atol=1e-6)
-    np.testing.assert_allclose(out[..., 1], u, rtol=2e-6, atol=1e-6)
+    np.testing.assert_allclose(out[..., 1], u, rtol=0, atol=1e-4)
 
 
 def test_final_pass_matches_compose(ctx):
@@ -238,8 +249,7 @@ def _sources(target):
     surface = (
         "in vec3 P; in vec3 N; in vec2 t; layout(location = 0) out vec4 o;\n"
         + _look.glsl_surface()
-        + "void main() { vec4 h0, h1; look_hatch_samples(P, N, 0.01, h0, h1);"
-        " o = vec4(look_surface(t, 1.0, look_shadow_factor(P, N), h0, h1), 0.0, 0.0); }\n"
+        + "void main() { o = vec4(look_surface(t, 1.0, look_shadow_factor(P, N), P, N, 0.01), 0.0, 0.0); }\n"
     )
     out.append(("surface", "fragment", head + surface))
     return out

@@ -43,6 +43,7 @@ from ._hatching import pack_tam as pack_tam
 from ._hatching import PackedMap as PackedMap
 from ._hatching import sample_tam as sample_tam
 from ._hatching import tonal_art_map as tonal_art_map
+from ._hatching import tam_atlas as tam_atlas
 from ._hatching import tone_weights as tone_weights
 from ._look import DEFAULT_LOOK as DEFAULT_LOOK
 from ._look import OFF as OFF

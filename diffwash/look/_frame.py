@@ -21,6 +21,7 @@ import numpy as np
 from .._glsl import functions_source, uniform_values
 from . import _gl
 from ._edges import edge_downsample, glsl_edge_passes
+from ._hatching import tam_atlas
 from ._look import glsl_final_pass, glsl_surface, look_uniforms
 from ._mix import bake_mix_lut, glaze_mix
 from ._shadow import SHADOW_MAP_SIZE, glsl_depth_pass, glsl_shadow, light_view_projection, normal_offset
@@ -89,16 +90,13 @@ void main() {
     vec3 L = safe_normalize(light_direction);
     vec3 V = safe_normalize(eye - world_position);
     vec2 t = watercolour_thickness(N, L, V);
-    vec4 h0 = vec4(0.0), h1 = vec4(0.0);
-#if LOOK_HATCHING
-    look_hatch_samples(world_position, N, dot(world_position - eye, eye_forward) * look_pixel_scale, h0, h1);
-#endif
 #if LOOK_VERTEX_SHADOW
     float shadow = v_shadow;
 #else
     float shadow = look_shadow_factor(world_position, N);
 #endif
-    gbuffer = vec4(look_surface(t, k_unlit, shadow, h0, h1), v_mix, v_stroke);
+    float pixel_size = dot(world_position - eye, eye_forward) * look_pixel_scale;
+    gbuffer = vec4(look_surface(t, k_unlit, shadow, world_position, N, pixel_size), v_mix, v_stroke);
 }
 """
     return vert, frag
@@ -106,7 +104,7 @@ void main() {
 
 def look_textures(scene: Any, p: Any) -> tuple[dict[str, list[np.ndarray]], float, float]:
     """The look's input textures, each a list of levels (the mix LUT, the screen tile in two, the tonal art
-    map's two halves), and the mix LUT's wash and unlit ranges: what `LookFrame` uploads and export writes."""
+    map's atlas), and the mix LUT's wash and unlit ranges: what `LookFrame` uploads and export writes."""
     wc = scene.watercolour
     wash_max, unlit_max = MIX_LUT_RANGE * float(p.wash_max), MIX_LUT_RANGE * float(p.unlit_max)
     wash_b = p.wash if wc.wash_b is None else wc.wash_b
@@ -119,9 +117,7 @@ def look_textures(scene: Any, p: Any) -> tuple[dict[str, list[np.ndarray]], floa
         "screen1": [np.ascontiguousarray(c[..., 4:6])],
     }
     if wc.tam is not None:
-        tam = [np.asarray(level, np.float32) for level in wc.tam]
-        for i in range(2):
-            out[f"tam{i}"] = [np.ascontiguousarray(level[..., 4 * i : 4 * i + 4]) for level in tam]
+        out["tam"] = tam_atlas(wc.tam)
     return out, wash_max, unlit_max
 
 
@@ -201,7 +197,7 @@ class LookFrame:
         self.s0, self.s1 = _gl.texture(ctx, textures["screen0"][0]), _gl.texture(ctx, second)
         self.tam = None
         if hatching:
-            self.tam = [_gl.texture(ctx, textures[f"tam{i}"][0], repeat=True, mipmaps=textures[f"tam{i}"][1:]) for i in range(2)]
+            self.tam = _gl.texture(ctx, textures["tam"][0], repeat=True, mipmaps=textures["tam"][1:])
         self._targets(W, H)
 
     def _targets(self, W: int, H: int) -> None:
@@ -250,7 +246,7 @@ class LookFrame:
         W, H = self.size
         units = {"look_shadow_map": self.shadow_map, "look_mix_lut": self.lut, "look_screen0": self.s0, "look_screen1": self.s1}
         if self.tam:
-            units.update(look_tam0=self.tam[0], look_tam1=self.tam[1])
+            units["look_tam"] = self.tam
 
         def geometry():
             self.gfbo.use()

@@ -19,7 +19,8 @@ cross direction, as pen-and-ink illustrators do.
 
 Eight tones are packed in two RGBA images per level (Praun et al. pack six in
 two RGB textures); the ink of a tone value `tau` in [0, 1] blends the two
-nearest tones (tone 0 is blank paper): `hatch_ink`. The texture coordinates
+nearest tones (tone 0 is blank paper): `hatch_ink`. The shaders read an atlas
+of the tone pairs instead (`tam_atlas`), one fetch per projection. The texture coordinates
 are a triplanar projection of object-space positions (`triplanar_weights`),
 so the hatching sticks to the surface without a parametrisation, and the mip
 level is computed from the pixel's footprint on the surface (`hatch_lod`),
@@ -249,37 +250,71 @@ def triplanar_weights(normal: Float[ArrayLike, "*b 3"]) -> Float[Array, "*b 3"]:
     return a / jnp.maximum(total, 1e-12)
 
 
-def glsl_hatching(tones: int = TONES, levels: int = TAM_LEVELS, size: int = 256) -> str:
-    """GLSL of the hatching: two RGBA mipmapped TAM textures, triplanar, explicit LOD.
+def atlas_pad(levels: int = TAM_LEVELS) -> int:
+    """Rows of wrap padding above and below each tile of `tam_atlas` at level 0 (halved at each level, 1 at the last)."""
+    return 2 ** (levels - 1)
 
-    Uniforms: `look_tam0`, `look_tam1` (tones 1-4 and 5-8, REPEAT, LINEAR_MIPMAP_LINEAR,
-    levels 0..levels-1), `look_hatch_scale` (texels of level 0 per object unit).
-    `look_hatch_samples(P, N, pixel_size, out h0, out h1)`: the ink of every tone
-    (`hatch_samples`); `look_tone_weights(tau, 0.0)` and `(tau, 4.0)` weight them.
+
+def tam_atlas(tam: list, tones: int = TONES) -> list[np.ndarray]:
+    """The map as the shaders sample it: one RG image per level, `tones` tiles stacked in rows.
+
+    Tile `k` holds the ink of the two tones `hatch_ink` blends for a tone value
+    in `[k, k + 1) / tones`: channel R tone `k` (blank paper, 0, for `k = 0`),
+    G tone `k + 1` (the map's channels `k - 1` and `k`). So one bilinear fetch
+    per projection reads both tones (the shader picks the tile by its rows),
+    where the two RGBA images of every tone would need two. Each tile is padded
+    above and below by `atlas_pad(levels) >> level` rows copied from its other
+    end, so filtering at a tile's edge reads what `GL_REPEAT` would; with the
+    padding halving at each level, level `l` is exactly half of level `l - 1`,
+    and the same texture coordinate addresses the same point of the tile at
+    every level. Shape of level `l`: `(tones * (n_l + 2 p_l), n_l, 2)`.
     """
-    if tones != 8:
-        raise ValueError("the shader packs exactly 8 tones in two RGBA textures")
+    levels = [np.asarray(level, np.float32) for level in tam]
+    pad0 = atlas_pad(len(levels))
+    out = []
+    for index, level in enumerate(levels):
+        n, p = level.shape[0], pad0 >> index
+        below = np.concatenate([np.zeros(level.shape[:2] + (1,), np.float32), level[..., : tones - 1]], axis=-1)
+        tiles = []
+        for k in range(tones):
+            tile = np.stack([below[..., k], level[..., k]], axis=-1)
+            tiles.append(np.concatenate([tile[n - p :], tile, tile[:p]], axis=0))
+        out.append(np.ascontiguousarray(np.concatenate(tiles, axis=0)))
+    return out
+
+
+def glsl_hatching(tones: int = TONES, levels: int = TAM_LEVELS, size: int = 256) -> str:
+    """GLSL of `hatch_ink_at`: the ink at tone `tau` from the map's atlas (`tam_atlas`), triplanar, explicit LOD.
+
+    Uniforms: `look_tam` (the atlas, RG, REPEAT, LINEAR_MIPMAP_LINEAR, levels
+    0..levels-1), `look_hatch_scale` (texels of level 0 per object unit).
+    `float look_hatch_ink(P, N, pixel_size, tau)`: three fetches, one per
+    projection, each reading the two tones around `tau`.
+    """
+    pad = atlas_pad(levels)
+    tile = size + 2 * pad
     return f"""\
 // ---- Hatching: a tonal art map (diffwash/look/_hatching.py, after Praun et al. 2001) ---------------
-uniform sampler2D look_tam0;        // tones 1-4 (ink coverage), mip levels 0..{levels - 1} built with nested strokes
-uniform sampler2D look_tam1;        // tones 5-8
+uniform sampler2D look_tam;         // tam_atlas: {tones} tiles of {size} + 2 x {pad} rows (level 0), tile k = tones k, k + 1 (RG)
 uniform float look_hatch_scale;     // texels of level 0 per object unit
 
-vec4 look_tone_weights(float tau, float base) {{
-    float x = clamp(tau, 0.0, 1.0) * {float_literal(tones)};
-    return clamp(1.0 - abs(vec4(x) - (vec4(1.0, 2.0, 3.0, 4.0) + base)), 0.0, 1.0);
-}}
-
-// The map's ink of all 8 tones at object-space point P (normal N), for a pixel covering pixel_size
-// object units: triplanar projection, explicit level of detail.
-void look_hatch_samples(vec3 P, vec3 N, float pixel_size, out vec4 h0, out vec4 h1) {{
+// The map's ink at tone tau at object-space point P (normal N), for a pixel covering pixel_size object
+// units: triplanar projection, explicit level of detail; tone 0 is blank paper.
+float look_hatch_ink(vec3 P, vec3 N, float pixel_size, float tau) {{
     float x = pixel_size * look_hatch_scale;
     float lod = x > 0.0 ? clamp(log2(x), 0.0, {float_literal(levels - 1)}) : 0.0;
-    vec3 a = pow(abs(N), vec3({float_literal(_TRIPLANAR_SHARPNESS)}));
+    vec3 a = abs(N) * abs(N);
+    a = a * a;                        // |N|^{_TRIPLANAR_SHARPNESS:g}
     a /= max(a.x + a.y + a.z, 1e-12);
     vec3 q = P * (look_hatch_scale / {float_literal(size)});   // texture coordinates: level 0 is {size} texels
-    h0 = a.x * textureLod(look_tam0, q.yz, lod) + a.y * textureLod(look_tam0, q.zx, lod) + a.z * textureLod(look_tam0, q.xy, lod);
-    h1 = a.x * textureLod(look_tam1, q.yz, lod) + a.y * textureLod(look_tam1, q.zx, lod) + a.z * textureLod(look_tam1, q.xy, lod);
+    float t = clamp(tau, 0.0, 1.0) * {float_literal(tones)};
+    float k = clamp(floor(t), 0.0, {float_literal(tones - 1)});
+    float g = t - k;
+    // The rows of tile k: the same fraction of the atlas at every level (the padding halves with the tile).
+    vec3 v = (k * {float_literal(tile)} + {float_literal(pad)} + fract(vec3(q.z, q.x, q.y)) * {float_literal(size)}) / {float_literal(tones * tile)};
+    vec2 s = a.x * textureLod(look_tam, vec2(q.y, v.x), lod).rg + a.y * textureLod(look_tam, vec2(q.z, v.y), lod).rg
+           + a.z * textureLod(look_tam, vec2(q.x, v.z), lod).rg;
+    return (1.0 - g) * s.x + g * s.y;
 }}
 """
 
@@ -297,8 +332,8 @@ def hatch_samples(
 
     `pixel_size`: each pixel's footprint in object units (e.g. eye depth times
     `2 tan(fov_y / 2) / height`); `scale`: texels of level 0 per object unit.
-    `glsl_hatching`'s `look_hatch_samples` is its twin; `hatch_ink(samples, tau)`
-    then blends the two tones nearest `tau`.
+    `hatch_ink(samples, tau)` then blends the two tones nearest `tau` (the
+    reference that `hatch_ink_at`, and the shaders' `look_hatch_ink`, are held to).
     """
     lod = hatch_lod(pixel_size, scale, len(tam))
     w = triplanar_weights(N)

@@ -45,7 +45,7 @@ import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from ._edges import EDGE_RADIUS, edge_darkening, edge_downsample, gaussian_weights_np, glsl_edge_darkening
-from ._hatching import hatch_ink, glsl_hatching
+from ._hatching import TAM_LEVELS, glsl_hatching, hatch_ink
 from ._mix import glsl_mix_lut
 from ._paper import PigmentLook, glsl_paper, paper_shading, pigment_factor, unevenness_factor
 from ._shadow import DEFAULT_BIAS, glsl_shadow
@@ -275,26 +275,32 @@ def look_uniforms(look: Look, pigments: Pigments, *, height: int, radius: int = 
     return out
 
 
-def glsl_surface() -> str:
-    """GLSL of `surface_terms` for a geometry pass, with the shadow and hatching functions it calls.
+def glsl_surface(*, tam_levels: int = TAM_LEVELS, tam_size: int = 256) -> str:
+    """GLSL of `surface_terms` for a geometry pass, with the shadow and hatching functions it calls
+    (`tam_levels`, `tam_size`: the tonal art map's levels and level-0 side, as `glsl_hatching`).
 
-    `vec2 look_surface(vec2 t, float unlit_max, float shadow, vec4 hatch0, vec4 hatch1)`; the pass
-    writes `vec4(look_surface(...), mix, stroke)` to the G-buffer.
+    `vec2 look_surface(vec2 t, float unlit_max, float shadow, vec3 P, vec3 N, float pixel_size)` (the
+    point, its normal and footprint for the hatching, read only where `LOOK_HATCHING` is 1, the default);
+    the pass writes `vec4(look_surface(...), mix, stroke)` to the G-buffer.
     """
     return (
         glsl_shadow()
         + "\n"
-        + glsl_hatching()
+        + glsl_hatching(levels=tam_levels, size=tam_size)
         + """
 // ---- Surface terms (diffwash/look/_look.py: surface_terms) -----------------------------------------
 uniform float look_shadow;     // how far the unlit glaze thickens in the object's own shadow
 uniform float look_hatching;   // how far the unlit glaze becomes hatching
 
-vec2 look_surface(vec2 t, float unlit_max, float shadow, vec4 hatch0, vec4 hatch1) {
+#ifndef LOOK_HATCHING
+#define LOOK_HATCHING 1
+#endif
+vec2 look_surface(vec2 t, float unlit_max, float shadow, vec3 P, vec3 N, float pixel_size) {
     float u = t.y + look_shadow * shadow * (unlit_max - t.y);
+#if LOOK_HATCHING
     float tau = unlit_max > 0.0 ? u / unlit_max : 0.0;
-    float ink = dot(hatch0, look_tone_weights(tau, 0.0)) + dot(hatch1, look_tone_weights(tau, 4.0));
-    u = u + look_hatching * (unlit_max * ink - u);
+    u = u + look_hatching * (unlit_max * look_hatch_ink(P, N, pixel_size, tau) - u);
+#endif
     return vec2(t.x, u);
 }
 """

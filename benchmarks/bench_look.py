@@ -1,6 +1,6 @@
 """The watercolour look's cost and real-time agreement (issue 13), against the plain model.
 
-    python benchmarks/bench_look.py [--rounds 5] [--gl-size 1024] [--seconds 4] [--skip scene jax gl profile agreement lut]
+    python benchmarks/bench_look.py [--rounds 5] [--gl-size 1024] [--seconds 4] [--skip scene jax gl profile bound agreement lut]
 
 0. `diffwash.render` of data/scenes/watercolour.json (every effect on, 512^2, 100k triangles, CPU float32),
    warm, against the same scene without its "watercolour" object; and the PSNR between the two images.
@@ -15,6 +15,10 @@
    of per-round ratios.
 2b. The same frame pass by pass (`LookFrame.passes()`, `ctx.finish()` around each), and its geometry pass
    with hatching off, the shadow per pixel, and depth only (vertex processing and triangle setup).
+2c. A lower bound for any frame that draws the look on this machine: the look's per-pixel work in ONE
+   geometry pass straight to RGBA8 (no G-buffer, no full-screen pass, and no edge darkening, which needs
+   the neighbours), then with effects stripped one by one down to the vertex stage alone, against the plain
+   LUT shader in alternating rounds. These shaders are benchmark-only (not the look's image).
 3. Agreement: `diffwash preview` (the look's OpenGL passes) against `diffwash.render`, the showcase at
    512^2, as 8-bit sRGB PSNR.
 4. The 3D mix LUT's error by size.
@@ -172,6 +176,20 @@ def gl_costs(size: int, seconds: float, rounds: int) -> dict:
     looks = {"look, every effect on": LookFrame(ctx, scene, size=(size, size)),
              "look without hatching": LookFrame(ctx, no_hatch, size=(size, size))}  # fmt: skip
 
+    def base_draw():
+        ctx.viewport = (0, 0, size, size)
+        base.draw(bfbo)
+
+    res = _fps_rounds(ctx, {"plain LUT shader": base_draw, **{k: lf.draw for k, lf in looks.items()}}, seconds, rounds)
+    res["renderer"] = preview.renderer_name()
+    return res
+
+
+def _fps_rounds(ctx, draws: dict, seconds: float, rounds: int) -> dict:
+    """Frames per second of each draw (the first is the reference), in alternating rounds of `seconds / rounds`
+    each, `ctx.finish()` every 5 frames: medians, and each draw's frame time over the first's (median of
+    per-round ratios)."""
+
     def fps(draw):
         frames, t0 = 0, time.perf_counter()
         while True:
@@ -182,11 +200,6 @@ def gl_costs(size: int, seconds: float, rounds: int) -> dict:
                 if time.perf_counter() - t0 >= seconds / rounds:
                     return frames / (time.perf_counter() - t0)
 
-    def base_draw():
-        ctx.viewport = (0, 0, size, size)
-        base.draw(bfbo)
-
-    draws = {"plain LUT shader": base_draw, **{k: lf.draw for k, lf in looks.items()}}
     for d in draws.values():
         d()
     ctx.finish()
@@ -194,10 +207,10 @@ def gl_costs(size: int, seconds: float, rounds: int) -> dict:
     for _ in range(rounds):
         for k, d in draws.items():
             out[k].append(fps(d))
+    ref = next(iter(draws))
     res = {k: statistics.median(v) for k, v in out.items()}
-    for k in looks:
-        res[f"{k} / plain (frame time)"] = statistics.median([b / a for a, b in zip(out[k], out["plain LUT shader"])])
-    res["renderer"] = preview.renderer_name()
+    for k in list(draws)[1:]:
+        res[f"{k.strip()} / {ref} (frame time)"] = statistics.median([b / a for a, b in zip(out[k], out[ref])])
     return res
 
 
@@ -250,6 +263,93 @@ def gl_profile(size: int, rounds: int) -> dict:
     bfbo = base.framebuffer(size, size)
     steps["plain LUT shader (whole frame)"] = lambda: (setattr(ctx, "viewport", (0, 0, size, size)), base.draw(bfbo))
     return _time_steps(ctx, steps, rounds)
+
+
+#: The bound's shader variants, cumulative: what each strips from the one-pass look.
+BOUND_VARIANTS = (
+    ("one pass: every effect but edge darkening", {}),
+    ("  - hatching", {"hatching": False}),
+    ("  - the 3D mix LUT (colour = thicknesses)", {"hatching": False, "lut": False}),
+    ("  - the screen tile (paper, unevenness)", {"hatching": False, "lut": False, "screen": False}),
+    ("  - the model (vertex stage and setup alone)", {"hatching": False, "lut": False, "screen": False, "model": False}),
+)
+
+
+def _bound_fragment(*, hatching: bool = True, lut: bool = True, screen: bool = True, model: bool = True) -> str:
+    """A one-pass fragment shader doing the look's per-pixel work (`glsl_surface`, then `glsl_final_pass`'s
+    per-pixel terms) on the interpolated attributes of `geometry_sources`' vertex shader; no edge darkening."""
+    from diffwash._glsl import functions_source
+    from diffwash.look import _gl
+    from diffwash.look._look import glsl_surface
+    from diffwash.look._mix import glsl_mix_lut
+    from diffwash.look._paper import glsl_paper
+    from diffwash.look._strokes import glsl_strokes
+
+    ins = "in float v_shadow;\nin vec3 world_position;\nin vec3 world_normal;\nin float v_mix;\nin float v_stroke;\n"
+    out = "layout(location = 0) out vec4 colour;\n"
+    if not model:
+        return _gl.header("glsl330") + ins + out + "void main() { colour = vec4(v_mix, v_stroke, v_shadow, 1.0); }\n"
+    tile = "texelFetch(look_screen{k}, ivec2(int(gl_FragCoord.x) % tile.x, (look_rows - 1 - int(gl_FragCoord.y)) % tile.y), 0)"
+    return (
+        _gl.header("glsl330") + f"#define LOOK_HATCHING {int(hatching)}\n" + functions_source("glsl330", colour="km") + glsl_surface()
+        + glsl_paper() + glsl_strokes() + glsl_mix_lut() + ins + out
+        + "uniform vec3 eye_forward;\nuniform float look_pixel_scale;\nuniform int look_rows;\n"
+        "uniform sampler2D look_screen0;\nuniform sampler2D look_screen1;\n"
+        "uniform vec4 look_wash_pigment;\nuniform vec4 look_wash_pigment_b;\nuniform vec4 look_unlit_pigment;\nuniform vec4 look_unlit_pigment_b;\n"
+        "void main() {\n"
+        "    vec3 N = safe_normalize(world_normal);\n"
+        "    vec2 t = watercolour_thickness(N, safe_normalize(light_direction), safe_normalize(eye - world_position));\n"
+        "    t = look_surface(t, k_unlit, v_shadow, world_position, N, dot(world_position - eye, eye_forward) * look_pixel_scale);\n"
+        "    ivec2 tile = textureSize(look_screen0, 0);\n"
+        + (f"    vec4 s0 = {tile.format(k=0)};\n    vec4 s1 = {tile.format(k=1)};\n" if screen else "    vec4 s0 = vec4(0.5), s1 = vec4(0.5);\n")
+        + "    float m = v_mix, b = look_stroke_factor(v_stroke);\n"
+        "    float w = t.x * b * mix(look_pigment_factor(s0.x, look_wash_pigment), look_pigment_factor(s0.x, look_wash_pigment_b), m)"
+        " * look_unevenness_factor(s0.z, s0.w);\n"
+        "    float u = t.y * b * mix(look_pigment_factor(s0.x, look_unlit_pigment), look_pigment_factor(s0.x, look_unlit_pigment_b), m)"
+        " * look_unevenness_factor(s1.x, s1.y);\n"
+        + ("    vec3 c = look_mix_colour(w, u, m);\n" if lut else "    vec3 c = vec3(w, u, m);\n")
+        + "    colour = vec4(pow(clamp(look_paper_shading_apply(c, s0.y), 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);\n}\n"
+    )
+
+
+def gl_bound(size: int, seconds: float, rounds: int) -> dict:
+    """Frames per second of `_bound_fragment`'s variants (the showcase at size^2, every texture and uniform
+    as `LookFrame` sets them) and of the plain LUT shader, in alternating rounds."""
+    import equinox as eqx
+    import moderngl
+
+    from diffwash import preview
+    from diffwash.look._frame import LookFrame, _bind, _set_uniforms, geometry_sources
+
+    ctx = preview.create_context()
+    scene = diffwash.load_scene(SHOWCASE)
+    lf = LookFrame(ctx, scene, size=(size, size))
+    vert, _ = geometry_sources("glsl330", True)
+    target = ctx.framebuffer([ctx.texture((size, size), 4, dtype="f1")], ctx.depth_renderbuffer((size, size)))
+    units = {"look_shadow_map": lf.shadow_map, "look_mix_lut": lf.lut, "look_screen0": lf.s0, "look_screen1": lf.s1, "look_tam": lf.tam}
+
+    def one_pass(options):
+        prog = ctx.program(vertex_shader=vert, fragment_shader=_bound_fragment(**options))
+        _set_uniforms(prog, lf.uniforms)
+        vao = ctx.vertex_array(prog, [(lf.vbo, "3f 3f 1f 1f", "position", "normal", "mix_in", "stroke_in")], lf.ibo)
+
+        def draw():
+            target.use()
+            ctx.viewport = (0, 0, size, size)
+            target.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.enable(moderngl.CULL_FACE) if scene.cull_backfaces else ctx.disable(moderngl.CULL_FACE)
+            _bind(prog, units)
+            vao.render(moderngl.TRIANGLES)
+
+        return draw
+
+    plain = eqx.tree_at(lambda s: s.watercolour, scene, None, is_leaf=lambda x: x is None)
+    base = preview.Preview(ctx, plain)
+    bfbo = base.framebuffer(size, size)
+    draws = {"plain LUT shader": lambda: (setattr(ctx, "viewport", (0, 0, size, size)), base.draw(bfbo)),
+             "look (LookFrame, every effect)": lf.draw, **{name: one_pass(o) for name, o in BOUND_VARIANTS}}  # fmt: skip
+    return _fps_rounds(ctx, draws, seconds, rounds)
 
 
 def _depth_only(ctx, lf, prog, moderngl):
@@ -318,7 +418,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--gl-size", type=int, default=1024)
     ap.add_argument("--seconds", type=float, default=4.0)
-    ap.add_argument("--skip", nargs="*", default=[], choices=["scene", "jax", "gl", "profile", "agreement", "lut"])
+    ap.add_argument("--skip", nargs="*", default=[], choices=["scene", "jax", "gl", "profile", "bound", "agreement", "lut"])
     args = ap.parse_args(argv)
     if "scene" not in args.skip:
         print("| diffwash.render, data/scenes/watercolour.json, 512^2, 100k triangles, CPU float32 | value |\n| --- | ---: |")
@@ -339,6 +439,11 @@ def main(argv=None) -> int:
         print("| pass or variant | ms |\n| --- | ---: |")
         for k, v in gl_profile(args.gl_size, args.rounds).items():
             print(f"| {k} | {v:.1f} |")
+    if "bound" not in args.skip:
+        print(f"\nA lower bound: the look's per-pixel work in one pass, then less (OpenGL, {args.gl_size}^2, 100k triangles)\n")
+        print("| frame | fps or ratio |\n| --- | ---: |")
+        for k, v in gl_bound(args.gl_size, args.seconds, args.rounds).items():
+            print(f"| {k} | {v:.2f} |")
     if "lut" not in args.skip:
         print(f"\n3D mix LUT over {LUT_RANGE}x the model's thickness range, against the exact glaze (8-bit sRGB levels)\n")
         print("| table | max | rms | RGBA8 bytes |\n| --- | ---: | ---: | ---: |")

@@ -1,15 +1,39 @@
-"""Tests run in float64 (the library's default is float32) with warnings as errors."""
+"""Tests run in float64 (the library's default is float32) with warnings as errors.
 
+Each test process (each pytest-xdist worker) keeps JAX's compiled programs in a folder of its own, for its
+tests and the `diffwash` commands they run (one worker runs one test at a time, so no two processes write
+it at once); it is removed at exit. Tests that time a first run (the demo's) or state what a cold start
+costs (the notebooks) pass their own `DIFFWASH_CACHE_DIR`.
+"""
+
+import atexit
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
-os.environ.setdefault("DIFFWASH_CACHE_DIR", "off")
+# A worker inherits its parent's environment: the marker tells a folder made here from one the user chose.
+_OWN = "DIFFWASH_TESTS_OWN_CACHE"
+if os.environ.get("DIFFWASH_CACHE_DIR", os.environ.get(_OWN)) == os.environ.get(_OWN):
+    _JAX_CACHE = tempfile.mkdtemp(prefix="diffwash-tests-jax-")
+    atexit.register(shutil.rmtree, _JAX_CACHE, ignore_errors=True)
+    os.environ["DIFFWASH_CACHE_DIR"] = os.environ[_OWN] = _JAX_CACHE
 
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
+
+from diffwash.cli import enable_compilation_cache  # noqa: E402
+
+enable_compilation_cache()
+
+
+def pytest_unconfigure(config):
+    """Remove this process's compilation cache (an xdist worker may end without running atexit handlers)."""
+    if os.environ.get("DIFFWASH_CACHE_DIR") == os.environ.get(_OWN):
+        shutil.rmtree(os.environ[_OWN], ignore_errors=True)
 
 import hypothesis  # noqa: E402
 import pytest  # noqa: E402
@@ -83,7 +107,6 @@ def run_cli(tmp_path):
     def run(*args, cwd=None, env=None, timeout=600):
         e = dict(os.environ)
         e["PYTHONPATH"] = str(ROOT) + os.pathsep + e.get("PYTHONPATH", "")
-        e.setdefault("DIFFWASH_CACHE_DIR", "off")
         if env:
             e.update(env)
         return subprocess.run(

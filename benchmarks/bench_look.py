@@ -169,20 +169,29 @@ def gl_costs(size: int, seconds: float, rounds: int) -> dict:
 
     ctx = preview.create_context()
     scene = diffwash.load_scene(SHOWCASE)
-    plain = eqx.tree_at(lambda s: s.watercolour, scene, None, is_leaf=lambda x: x is None)
-    base = preview.Preview(ctx, plain)
-    bfbo = base.framebuffer(size, size)
     no_hatch = eqx.tree_at(lambda s: s.watercolour.tam, scene, None, is_leaf=lambda x: x is None)
     looks = {"look, every effect on": LookFrame(ctx, scene, size=(size, size)),
              "look without hatching": LookFrame(ctx, no_hatch, size=(size, size))}  # fmt: skip
 
-    def base_draw():
-        ctx.viewport = (0, 0, size, size)
-        base.draw(bfbo)
-
-    res = _fps_rounds(ctx, {"plain LUT shader": base_draw, **{k: lf.draw for k, lf in looks.items()}}, seconds, rounds)
+    res = _fps_rounds(ctx, {"plain LUT shader": _plain_draw(ctx, scene, size), **{k: lf.draw for k, lf in looks.items()}}, seconds, rounds)
     res["renderer"] = preview.renderer_name()
     return res
+
+
+def _plain_draw(ctx, scene, size: int):
+    """A draw of `scene` without its look through the exported LUT shader (`preview.Preview`), size^2: the ceiling."""
+    import equinox as eqx
+
+    from diffwash import preview
+
+    base = preview.Preview(ctx, eqx.tree_at(lambda s: s.watercolour, scene, None, is_leaf=lambda x: x is None))
+    fbo = base.framebuffer(size, size)
+
+    def draw():
+        ctx.viewport = (0, 0, size, size)
+        base.draw(fbo)
+
+    return draw
 
 
 def _fps_rounds(ctx, draws: dict, seconds: float, rounds: int) -> dict:
@@ -222,9 +231,6 @@ def gl_profile(size: int, rounds: int) -> dict:
     draw of the mesh (what every geometry pass costs before shading); "plain LUT shader" is the
     exported preview, the frame rate's ceiling.
     """
-    import equinox as eqx
-    import moderngl
-
     from diffwash import preview
     from diffwash.look import _gl
     from diffwash.look._frame import LookFrame, _set_uniforms, geometry_sources
@@ -257,11 +263,8 @@ def gl_profile(size: int, rounds: int) -> dict:
                         "void main() { gl_Position = view_projection * (model * vec4(position, 1.0)); }\n",
                         fragment_shader=head + "void main() {}\n")  # fmt: skip
     _set_uniforms(depth, lf.uniforms)
-    steps["geometry: vertex processing and setup (depth only)"] = _depth_only(ctx, lf, depth, moderngl)
-    plain = eqx.tree_at(lambda s: s.watercolour, scene, None, is_leaf=lambda x: x is None)
-    base = preview.Preview(ctx, plain)
-    bfbo = base.framebuffer(size, size)
-    steps["plain LUT shader (whole frame)"] = lambda: (setattr(ctx, "viewport", (0, 0, size, size)), base.draw(bfbo))
+    steps["geometry: vertex processing and setup (depth only)"] = _depth_only(ctx, lf, depth)
+    steps["plain LUT shader (whole frame)"] = _plain_draw(ctx, scene, size)
     return _time_steps(ctx, steps, rounds)
 
 
@@ -315,9 +318,6 @@ def _bound_fragment(*, hatching: bool = True, lut: bool = True, screen: bool = T
 def gl_bound(size: int, seconds: float, rounds: int) -> dict:
     """Frames per second of `_bound_fragment`'s variants (the showcase at size^2, every texture and uniform
     as `LookFrame` sets them) and of the plain LUT shader, in alternating rounds."""
-    import equinox as eqx
-    import moderngl
-
     from diffwash import preview
     from diffwash.look._frame import LookFrame, _bind, _set_uniforms, geometry_sources
 
@@ -332,35 +332,31 @@ def gl_bound(size: int, seconds: float, rounds: int) -> dict:
         prog = ctx.program(vertex_shader=vert, fragment_shader=_bound_fragment(**options))
         _set_uniforms(prog, lf.uniforms)
         vao = ctx.vertex_array(prog, [(lf.vbo, "3f 3f 1f 1f", "position", "normal", "mix_in", "stroke_in")], lf.ibo)
+        return _mesh_pass(ctx, target, (size, size), vao, scene.cull_backfaces, lambda: _bind(prog, units), clear=1.0)
 
-        def draw():
-            target.use()
-            ctx.viewport = (0, 0, size, size)
-            target.clear(1.0, 1.0, 1.0, 1.0, depth=1.0)
-            ctx.enable(moderngl.DEPTH_TEST)
-            ctx.enable(moderngl.CULL_FACE) if scene.cull_backfaces else ctx.disable(moderngl.CULL_FACE)
-            _bind(prog, units)
-            vao.render(moderngl.TRIANGLES)
-
-        return draw
-
-    plain = eqx.tree_at(lambda s: s.watercolour, scene, None, is_leaf=lambda x: x is None)
-    base = preview.Preview(ctx, plain)
-    bfbo = base.framebuffer(size, size)
-    draws = {"plain LUT shader": lambda: (setattr(ctx, "viewport", (0, 0, size, size)), base.draw(bfbo)),
+    draws = {"plain LUT shader": _plain_draw(ctx, scene, size),
              "look (LookFrame, every effect)": lf.draw, **{name: one_pass(o) for name, o in BOUND_VARIANTS}}  # fmt: skip
     return _fps_rounds(ctx, draws, seconds, rounds)
 
 
-def _depth_only(ctx, lf, prog, moderngl):
+def _depth_only(ctx, lf, prog):
     vao = ctx.vertex_array(prog, [(lf.vbo, "3f 20x", "position")], lf.ibo)
+    return _mesh_pass(ctx, lf.gfbo, lf.size, vao, lf.scene.cull_backfaces)
+
+
+def _mesh_pass(ctx, fbo, size, vao, cull: bool, bind=None, clear: float = 0.0):
+    """A draw of the mesh into `fbo` as the look's geometry pass sets it up (cleared to `clear`, depth test,
+    back faces culled where the scene says), `bind()` first (textures); the state is restored after."""
+    import moderngl
 
     def run():
-        lf.gfbo.use()
-        ctx.viewport = (0, 0, *lf.size)
-        lf.gfbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        fbo.use()
+        ctx.viewport = (0, 0, *size)
+        fbo.clear(clear, clear, clear, clear, depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)
-        ctx.enable(moderngl.CULL_FACE) if lf.scene.cull_backfaces else ctx.disable(moderngl.CULL_FACE)
+        ctx.enable(moderngl.CULL_FACE) if cull else ctx.disable(moderngl.CULL_FACE)
+        if bind is not None:
+            bind()
         vao.render(moderngl.TRIANGLES)
         ctx.disable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)

@@ -2,11 +2,10 @@
 
 Each test process (each pytest-xdist worker) keeps JAX's compiled programs in a folder of its own, for its
 tests and the `diffwash` commands they run (one worker runs one test at a time, so no two processes write
-it at once); it is removed at exit. Tests that time a first run (the demo's) or state what a cold start
-costs (the notebooks) pass their own `DIFFWASH_CACHE_DIR`.
+it at once); it is removed when the process's test session ends. Tests that time a first run (the demo's)
+or state what a cold start costs (the notebooks) pass their own `DIFFWASH_CACHE_DIR`.
 """
 
-import atexit
 import os
 import shutil
 import subprocess
@@ -17,9 +16,7 @@ from pathlib import Path
 # A worker inherits its parent's environment: the marker tells a folder made here from one the user chose.
 _OWN = "DIFFWASH_TESTS_OWN_CACHE"
 if os.environ.get("DIFFWASH_CACHE_DIR", os.environ.get(_OWN)) == os.environ.get(_OWN):
-    _JAX_CACHE = tempfile.mkdtemp(prefix="diffwash-tests-jax-")
-    atexit.register(shutil.rmtree, _JAX_CACHE, ignore_errors=True)
-    os.environ["DIFFWASH_CACHE_DIR"] = os.environ[_OWN] = _JAX_CACHE
+    os.environ["DIFFWASH_CACHE_DIR"] = os.environ[_OWN] = tempfile.mkdtemp(prefix="diffwash-tests-jax-")
 
 import jax  # noqa: E402
 
@@ -29,17 +26,18 @@ from diffwash.cli import enable_compilation_cache  # noqa: E402
 
 enable_compilation_cache()
 
-
-def pytest_unconfigure(config):
-    """Remove this process's compilation cache (an xdist worker may end without running atexit handlers)."""
-    if os.environ.get("DIFFWASH_CACHE_DIR") == os.environ.get(_OWN):
-        shutil.rmtree(os.environ[_OWN], ignore_errors=True)
-
 import hypothesis  # noqa: E402
 import pytest  # noqa: E402
 
 hypothesis.settings.register_profile("diffwash", deadline=None, max_examples=200, derandomize=True)
 hypothesis.settings.load_profile("diffwash")
+
+
+def pytest_unconfigure(config):
+    """Remove this process's compilation cache, if this file made it (every xdist worker and the controller)."""
+    if os.environ.get("DIFFWASH_CACHE_DIR") == os.environ.get(_OWN):
+        shutil.rmtree(os.environ[_OWN], ignore_errors=True)
+
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "data"

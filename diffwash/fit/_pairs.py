@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -91,6 +92,26 @@ def _lm(residuals: Callable[[Array], Array], theta0: Array, steps: int) -> tuple
     return th, (gain < 1e-4) | (mu > 1e8)
 
 
+@eqx.filter_jit
+def _fit_pairs(lab_of, reference: float, k2, wavelengths, bumps: int, ridge: float, steps: int, K, S, gam, w, A2, G2, lab2, mask):
+    """Every pair's terms at once (`jax.vmap` over the leading axis of `K` ... `mask`). Module-level, with the
+    data as arguments: a later fit of the same shapes finds it compiled."""
+    centres, width = _basis(wavelengths, bumps)
+
+    def one(K, S, gam, w, A2, G2, lab2, mask):
+        law = mixing.AmountLaw(gamma=gam, reference=reference)
+
+        def residuals(theta):
+            terms = _terms(theta, ((0, 1),), bumps, centres, width, wavelengths)
+            R = mixing.reflectance(K, S, A2, G2, law, w, k2, terms)
+            r = jnp.where(mask[:, None], colorimetry.delta_e_2000_residuals(lab2, lab_of(R)), 0)
+            return jnp.concatenate([r.ravel(), ridge * theta])
+
+        return _lm(residuals, jnp.zeros(2 * bumps + 2, K.dtype), steps)
+
+    return jax.vmap(one)(K, S, gam, w, A2, G2, lab2, mask)
+
+
 def fit_pair_terms(
     palette: mixing.Palette,
     A: Float[np.ndarray, "n p"],
@@ -128,19 +149,7 @@ def fit_pair_terms(
     ij = np.asarray(pairs)
     K, S = jnp.asarray(palette.K, dtype)[ij], jnp.asarray(palette.S, dtype)[ij]
     gam, w = jnp.asarray(palette.law.gamma, dtype)[ij], jnp.asarray(palette.weights, dtype)[ij]
-    npar = 2 * bumps + 2
-
-    def one(K, S, gam, w, A2, G2, lab2, mask):
-        law = mixing.AmountLaw(gamma=gam, reference=palette.law.reference)
-
-        def residuals(theta):
-            terms = _terms(theta, ((0, 1),), bumps, centres, width, palette.wavelengths)
-            R = mixing.reflectance(K, S, A2, G2, law, w, k2, terms)
-            r = jnp.where(mask[:, None], colorimetry.delta_e_2000_residuals(lab2, lab_of(R)), 0)
-            return jnp.concatenate([r.ravel(), ridge * theta])
-
-        return _lm(residuals, jnp.zeros(npar, dtype), steps)
-
-    theta, done = jax.jit(jax.vmap(one))(K, S, gam, w, A2, G2, lab2, mask)
+    theta, done = _fit_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, bumps, ridge, steps,
+                             K, S, gam, w, A2, G2, lab2, mask)  # fmt: skip
     terms = _terms(theta, tuple(pairs), bumps, centres, width, palette.wavelengths)
     return terms, bool(jnp.all(done))

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
@@ -37,34 +38,47 @@ from ._bandlsq import _tangents
 __all__ = ["refine_in_de2000"]
 
 
-def _problem(reflect, lab_of, lab_target, band0, ridge: float, shared_prior):
-    def residuals(band, shared):
-        R = reflect(band, shared)
-        r = colorimetry.delta_e_2000_residuals(lab_target, lab_of(R))
-        return r, ridge * (band - band0), shared_prior(shared)
+class _Problem(eqx.Module):
+    """The refinement's problem. A Module (its functions Modules too, where the caller's are): a later fit of
+    the same shapes finds `_loss` and `_normal_equations` compiled, where closures would compile again."""
 
-    def loss(y):
-        return sum(jnp.sum(p * p) for p in residuals(*y))
+    reflect: Callable[[Array, Array], Array]
+    lab_of: Callable[[Array], Array]
+    lab_target: Array
+    band0: Array
+    ridge: float = eqx.field(static=True)
+    shared_prior: Callable[[Array], Array]
 
-    def normal_equations(y):
-        band, shared = y
-        B, Q = band.shape
-        R, reflect_jvp = jax.linearize(reflect, band, shared)  # R once; then Q + G tangents through its linearisation
-        dR = jax.vmap(reflect_jvp)(*_tangents(band, shared))  # (Q + G, N, B)
-        row = lambda Rn, ln: colorimetry.delta_e_2000_residuals(ln, lab_of(Rn))  # noqa: E731
-        E = jax.vmap(jax.jacfwd(row))(R, lab_target)  # (N, 3, B)
-        r, rb, rg = row(R, lab_target), ridge * (band - band0), shared_prior(shared)
-        Jb = jnp.einsum("nib,qnb->nibq", E, dR[:Q]).reshape(-1, B * Q)
-        Jg = jnp.einsum("nib,gnb->nig", E, dR[Q:]).reshape(Jb.shape[0], -1)
-        Jp = jax.jacfwd(shared_prior)(shared)
-        J = jnp.concatenate([Jb, Jg], axis=1)
-        H = J.T @ J
-        H = H.at[: B * Q, : B * Q].add(ridge**2 * jnp.eye(B * Q, dtype=H.dtype))
-        H = H.at[B * Q :, B * Q :].add(Jp.T @ Jp)
-        g = J.T @ r.ravel() + jnp.concatenate([ridge * rb.ravel(), Jp.T @ rg])
-        return H, g
+    def residuals(self, band, shared):
+        R = self.reflect(band, shared)
+        r = colorimetry.delta_e_2000_residuals(self.lab_target, self.lab_of(R))
+        return r, self.ridge * (band - self.band0), self.shared_prior(shared)
 
-    return jax.jit(loss), jax.jit(normal_equations)
+
+@eqx.filter_jit
+def _loss(pb: _Problem, y):
+    return sum(jnp.sum(p * p) for p in pb.residuals(*y))
+
+
+@eqx.filter_jit
+def _normal_equations(pb: _Problem, y):
+    band, shared = y
+    B, Q = band.shape
+    ridge, lab_of = pb.ridge, pb.lab_of
+    R, reflect_jvp = jax.linearize(pb.reflect, band, shared)  # R once; then Q + G tangents through its linearisation
+    dR = jax.vmap(reflect_jvp)(*_tangents(band, shared))  # (Q + G, N, B)
+    row = lambda Rn, ln: colorimetry.delta_e_2000_residuals(ln, lab_of(Rn))  # noqa: E731
+    E = jax.vmap(jax.jacfwd(row))(R, pb.lab_target)  # (N, 3, B)
+    r, rb, rg = row(R, pb.lab_target), ridge * (band - pb.band0), pb.shared_prior(shared)
+    Jb = jnp.einsum("nib,qnb->nibq", E, dR[:Q]).reshape(-1, B * Q)
+    Jg = jnp.einsum("nib,gnb->nig", E, dR[Q:]).reshape(Jb.shape[0], -1)
+    Jp = jax.jacfwd(pb.shared_prior)(shared)
+    J = jnp.concatenate([Jb, Jg], axis=1)
+    H = J.T @ J
+    H = H.at[: B * Q, : B * Q].add(ridge**2 * jnp.eye(B * Q, dtype=H.dtype))
+    H = H.at[B * Q :, B * Q :].add(Jp.T @ Jp)
+    g = J.T @ r.ravel() + jnp.concatenate([ridge * rb.ravel(), Jp.T @ rg])
+    return H, g
 
 
 def refine_in_de2000(
@@ -94,7 +108,9 @@ def refine_in_de2000(
     **Returns:** `((band, shared), converged, steps)`.
     """
     band0 = y0[0]
-    loss, normal_equations = _problem(reflect, lab_of, lab_target, band0, ridge, shared_prior)
+    pb = _Problem(reflect, lab_of, jnp.asarray(lab_target), band0, float(ridge), shared_prior)
+    loss = lambda y: _loss(pb, y)  # noqa: E731
+    normal_equations = lambda y: _normal_equations(pb, y)  # noqa: E731
     y, f = y0, float(loss(y0))
     H, g = normal_equations(y)
     mu = 1e-3

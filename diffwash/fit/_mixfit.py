@@ -296,7 +296,6 @@ class _RGBResiduals(eqx.Module):
     phi: Array
     coef0: Array
     white: Array
-    D: Array
     P: int = eqx.field(static=True)
     model: MixModel = eqx.field(static=True)
 
@@ -315,7 +314,8 @@ class _RGBResiduals(eqx.Module):
         r = colorimetry.delta_e_2000_residuals(lab_m, lab_p).ravel()
         # One "band" holding every coefficient: BandLevenbergMarquardt is then a dense LM by normal equations.
         ridge = RGB_RIDGE * model.prior * (coef - self.coef0).ravel()  # pins the directions three channels leave free
-        per_band = jnp.concatenate([r, RGB_SMOOTH * model.prior * (coef[:, 1:] @ self.D.T).ravel(), ridge])[None]
+        D = np.diff(np.eye(self.phi.shape[1] - 1), n=2, axis=0)  # second differences of the bumps' coefficients
+        per_band = jnp.concatenate([r, RGB_SMOOTH * model.prior * (coef[:, 1:] @ D.T).ravel(), ridge])[None]
         return per_band, _shared_prior(shared, P, model)
 
 
@@ -331,9 +331,8 @@ def _fit_rgb(m: Measurements, names, model: MixModel, max_steps: int, rtol: floa
     coef0 = jnp.asarray(_rgb_init(m, A, phi, obs), dtype)
     shared0 = jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0)
     cast = lambda x: jnp.asarray(x, dtype)  # noqa: E731
-    D = np.diff(np.eye(phi.shape[1] - 1), n=2, axis=0)  # second differences of the bumps' coefficients
     fn = _RGBResiduals(cast(A), cast(G), cast(m.values), jnp.asarray(m.lo), jnp.asarray(m.hi), cast(phi), coef0,
-                       cast(colorimetry.WHITE_D65), cast(D), P, model)  # fmt: skip
+                       cast(colorimetry.WHITE_D65), P, model)  # fmt: skip
     (flat, shared), ok, steps = _solve_in_chunks(fn, (coef0.reshape(1, -1), shared0), cast(obs.to_rgb), max_steps,
                                                  rtol)  # fmt: skip
     coef = flat.reshape(coef0.shape)

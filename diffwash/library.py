@@ -9,9 +9,11 @@ in one call:
 
 ```python
 lib = diffwash.library.load_library("paints.json")  # written by diffwash fit-swatch --table
-pred = lib.predict(["P1", "P1+P4"], ["0.05", "0.02+0.03"], ["paper", "paper"])
+pred = lib.predict(["P1", "P1+P4", "P1/P4"], ["0.05", "0.02+0.03", "0.02/0.03"], ["paper"] * 3)
 pred.srgb8, pred.lab, pred.reflectance
 ```
+
+(`P1/P4` is a glaze stack: P4 brushed over dry P1, `diffwash.mixing.stack_reflectance`.)
 
 The file is JSON:
 
@@ -42,7 +44,7 @@ import numpy as np
 from . import colorimetry, mixing, spectral
 from ._errors import DiffwashError
 from ._io import atomic_path, finite_number, read_json, write_json
-from .measurements import Queries, parse_mixture, read_queries
+from .measurements import Measurements, Queries, parse_stack, read_queries
 
 __all__ = ["Library", "Prediction", "load_library", "predict"]
 
@@ -75,7 +77,7 @@ class Prediction:
 
 @eqx.filter_jit
 def _forward(palette: mixing.Palette, amounts, ground, k2, obs: spectral.Observation):
-    R = palette.reflectance(amounts, ground, k2)
+    R = palette.stack_reflectance(amounts, ground, k2)
     return R, obs.linear_srgb(R), obs.lab(R)
 
 
@@ -111,16 +113,26 @@ class Library:
 
         A name the library lacks raises a `DiffwashError` naming the file, line and column.
         """
+        return self.layer_amounts(pigments, amounts, file=file, lines=lines)[:, 0]
+
+    def layer_amounts(self, pigments, amounts, layers=None, *, file: Any = None, lines: Any = None) -> np.ndarray:
+        """Rows as glaze stacks: a dense `(N, L, P)` amount array, layer by layer, bottom first (`L`: the most
+        layers of any row; rows of fewer layers are padded on top with empty layers, which are transparent).
+
+        `layers`: each row's pigments per layer (`Queries.layers`; None: every row one layer). A name the
+        library lacks raises a `DiffwashError` naming the file, line and column.
+        """
         index = {n.lower(): i for i, n in enumerate(self.names)}
-        out = np.zeros((len(pigments), len(self.names)))
-        for r, (names, amts) in enumerate(zip(pigments, amounts)):
-            for n, a in zip(names, amts):
+        sizes = [(len(p),) for p in pigments] if layers is None else [tuple(k) for k in layers]
+        out = np.zeros((len(pigments), max((len(k) for k in sizes), default=1), len(self.names)))
+        for r, (names, amts, k) in enumerate(zip(pigments, amounts, sizes)):
+            for n, a, at in zip(names, amts, np.repeat(np.arange(len(k)), k)):
                 i = index.get(n.lower())
                 if i is None:
                     where = f"line {int(lines[r])}: pigment" if lines is not None else f"row {r + 1}: pigment"
                     raise DiffwashError(f"no pigment {n!r} in the library (it has {', '.join(self.names)})",
                                         file=file, field=where)  # fmt: skip
-                out[r, i] += a
+                out[r, at, i] += a
         return out
 
     def ground_matrix(self, grounds, *, file: Any = None, lines: Any = None) -> np.ndarray:
@@ -141,15 +153,17 @@ class Library:
 
         **Arguments:**
 
-        - `pigments`: a `diffwash.measurements.Queries`, a path to a query table,
-          or per row a name (`"P1+P3"`) or a tuple of names.
-        - `amounts`: per row `"0.01+0.02"` or a tuple of numbers (rows given as lists only).
+        - `pigments`: a `diffwash.measurements.Queries` (or `Measurements`), a path to a query table,
+          or per row a name (`"P1+P3"`; `"P1/P3"` for P3 glazed over P1), a tuple of names (one layer)
+          or a tuple of such tuples (a stack, bottom layer first).
+        - `amounts`: per row `"0.01+0.02"` (`"0.01/0.02"`), or numbers shaped as the row's names (rows
+          given as lists only).
         - `grounds`: per row a ground's name (default: `paper`).
 
         **Returns:** a `Prediction`. Bad input raises a `DiffwashError`.
         """
         q = _as_queries(pigments, amounts, grounds)
-        A = self.amounts(q.pigments, q.amounts, file=q.path, lines=q.lines)
+        A = self.layer_amounts(q.pigments, q.amounts, q.layers, file=q.path, lines=q.lines)
         G = self.ground_matrix(q.ground, file=q.path, lines=q.lines)
         R, rgb, lab = _forward(self.palette, jnp.asarray(A), jnp.asarray(G), jnp.asarray(self.k2), self.observation)
         return Prediction(np.asarray(R, np.float64), np.asarray(rgb, np.float64), np.asarray(lab, np.float64),
@@ -179,19 +193,28 @@ class Library:
 def _as_queries(pigments, amounts, grounds) -> Queries:
     if isinstance(pigments, Queries):
         return pigments
+    if isinstance(pigments, Measurements):  # its rows
+        return Queries(pigments=pigments.pigments, amounts=pigments.amounts, ground=pigments.ground,
+                       path=pigments.path, lines=pigments.lines, layers=pigments.layers)  # fmt: skip
     if isinstance(pigments, (str, os.PathLike)) and amounts is None:
         return read_queries(pigments)
-    names, amts = [], []
+    names, amts, sizes = [], [], []
     for r, (p, a) in enumerate(zip(pigments, amounts)):
         if isinstance(p, str):
-            n, v = parse_mixture(p, a if isinstance(a, str) else "+".join(map(repr, np.atleast_1d(a).tolist())),
-                                 line=r + 1)  # fmt: skip
+            n, v, k = parse_stack(p, a if isinstance(a, str) else "+".join(map(repr, np.atleast_1d(a).tolist())),
+                                  line=r + 1)  # fmt: skip
+        elif len(p) and not isinstance(p[0], str):  # layers of names
+            n = tuple(x for layer in p for x in layer)
+            v = tuple(float(x) for layer in a for x in layer)
+            k = tuple(len(layer) for layer in p)
         else:
-            n, v = tuple(p), tuple(float(x) for x in a)
+            n, v, k = tuple(p), tuple(float(x) for x in a), (len(p),)
         names.append(n)
         amts.append(v)
+        sizes.append(k)
     g = ["paper"] * len(names) if grounds is None else [str(x).lower() for x in grounds]
-    return Queries(pigments=tuple(names), amounts=tuple(amts), ground=np.asarray(g))
+    layers = tuple(sizes) if any(len(k) > 1 for k in sizes) else None
+    return Queries(pigments=tuple(names), amounts=tuple(amts), ground=np.asarray(g), layers=layers)
 
 
 def _vector(d: dict, key: str, n: int | None, path: Any, where: str) -> np.ndarray:
@@ -319,7 +342,7 @@ def prediction_csv(queries: Queries, pred: Prediction) -> str:
     w.writerow(["pigment", "amount", "ground", "r", "g", "b", "L*", "a*", "b*", *bands])
     rgb = pred.srgb8
     for i in range(len(queries)):
-        row = ["+".join(queries.pigments[i]), "+".join(f"{a:g}" for a in queries.amounts[i]), queries.ground[i]]
+        row = [*queries.row_text(i), queries.ground[i]]
         row += [f"{v:.4f}" for v in rgb[i]] + [f"{v:.4f}" for v in pred.lab[i]]
         row += [f"{v:.6f}" for v in pred.reflectance[i]] if bands else []
         w.writerow(row)

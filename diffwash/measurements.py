@@ -18,10 +18,13 @@ P1+P3,0.01+0.02,paper,0.05,0.04,...
 ```
 
 - `pigment`: a pigment's name, or several joined by `+` for a mixture brushed
-  as one layer; a row `NAME,0,NAME` gives the colour of the ground `NAME`
-  (averaged if repeated), e.g. `paper,0,paper` or `black,0,black`.
+  as one layer, or layers joined by `/` for a glaze stack, bottom first (`A/B`:
+  B brushed over dry A; `A+B/C`: C over a mixed layer of A and B); a row
+  `NAME,0,NAME` gives the colour of the ground `NAME` (averaged if repeated),
+  e.g. `paper,0,paper` or `black,0,black`.
 - `amount`: how much of each pigment (>= 0, any unit: mL on the sample's area,
-  coats), as many `+`-joined numbers as there are pigments.
+  coats), as many `+`-joined numbers as there are pigments, layer by layer
+  (`0.01+0.01/0.03` for `A+B/C`).
 - `ground`: what the paint lies on, a ground that some row measures.
 
 Other columns (neither a number nor `r`, `g`, `b`) are ignored. A *query* table
@@ -47,7 +50,8 @@ import numpy as np
 from . import colorimetry, spectral
 from ._errors import DiffwashError
 
-__all__ = ["Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture"]
+__all__ = ["Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture", "parse_stack", "format_stack",
+           "split_layers"]
 
 #: Reflectance above this is taken for a table in percent, not a brightener's glow.
 MAX_REFLECTANCE = 2.0
@@ -77,6 +81,9 @@ class Measurements:
     - `grounds`: each ground's reflectance, name -> shape (B,).
     - `wavelengths`: the band grid in nm, or None for an RGB table.
     - `path`, `lines`: the file and each row's line in it.
+    - `layers`: for glaze stacks, each row's number of pigments per layer, bottom
+      first (`(2, 1)` for `A+B/C`; `pigments` and `amounts` hold every layer's in
+      that order); None: every row is one layer.
     """
 
     pigments: tuple[tuple[str, ...], ...]
@@ -89,6 +96,7 @@ class Measurements:
     wavelengths: tuple[float, ...] | None = None
     path: str | None = None
     lines: np.ndarray | None = field(default=None, repr=False)
+    layers: tuple[tuple[int, ...], ...] | None = None
 
     def __len__(self) -> int:
         return len(self.pigments)
@@ -104,8 +112,21 @@ class Measurements:
 
     @property
     def is_mixture(self) -> np.ndarray:
-        """Rows holding more than one distinct pigment, shape (N,)."""
-        return np.array([len(set(p)) > 1 for p in self.pigments], bool)
+        """Rows with a layer holding more than one distinct pigment, shape (N,)."""
+        return _is_mixture(self)
+
+    @property
+    def is_stack(self) -> np.ndarray:
+        """Rows of more than one layer (glaze stacks), shape (N,)."""
+        return _is_stack(self)
+
+    def row_layers(self, i: int) -> list[tuple[tuple[str, ...], tuple[float, ...]]]:
+        """Row `i`'s layers, bottom first: `[(names, amounts), ...]`."""
+        return split_layers(self.pigments[i], self.amounts[i], None if self.layers is None else self.layers[i])
+
+    def row_text(self, i: int) -> tuple[str, str]:
+        """Row `i`'s pigment and amount as a table writes them (`A+B/C`, `0.01+0.01/0.03`)."""
+        return format_stack(self.row_layers(i))
 
     def observation(self, **kwargs: Any) -> spectral.Observation:
         """The `diffwash.spectral.Observation` of this table's bands (keywords: illuminant, observer, method)."""
@@ -117,7 +138,8 @@ class Measurements:
         ix = np.flatnonzero(m)
         return replace(self, pigments=tuple(self.pigments[i] for i in ix), amounts=tuple(self.amounts[i] for i in ix),
                        ground=self.ground[m], values=self.values[m], lo=self.lo[m], hi=self.hi[m],
-                       lines=None if self.lines is None else self.lines[m])  # fmt: skip
+                       lines=None if self.lines is None else self.lines[m],
+                       layers=None if self.layers is None else tuple(self.layers[i] for i in ix))  # fmt: skip
 
     def _line(self, i: int) -> int:
         return int(self.lines[i]) if self.lines is not None else i + 2
@@ -132,9 +154,78 @@ class Queries:
     ground: np.ndarray
     path: str | None = None
     lines: np.ndarray | None = field(default=None, repr=False)
+    layers: tuple[tuple[int, ...], ...] | None = None
 
     def __len__(self) -> int:
         return len(self.pigments)
+
+    @property
+    def is_stack(self) -> np.ndarray:
+        """Rows of more than one layer (glaze stacks), shape (N,)."""
+        return _is_stack(self)
+
+    def row_layers(self, i: int) -> list[tuple[tuple[str, ...], tuple[float, ...]]]:
+        """Row `i`'s layers, bottom first: `[(names, amounts), ...]`."""
+        return split_layers(self.pigments[i], self.amounts[i], None if self.layers is None else self.layers[i])
+
+    def row_text(self, i: int) -> tuple[str, str]:
+        """Row `i`'s pigment and amount as a table writes them (`A+B/C`, `0.01+0.01/0.03`)."""
+        return format_stack(self.row_layers(i))
+
+
+def _is_stack(rows: Any) -> np.ndarray:
+    if rows.layers is None:
+        return np.zeros(len(rows.pigments), bool)
+    return np.array([len(k) > 1 for k in rows.layers], bool)
+
+
+def _is_mixture(rows: Any) -> np.ndarray:
+    return np.array([any(len(set(n)) > 1 for n, _ in rows.row_layers(i)) for i in range(len(rows.pigments))], bool)
+
+
+def split_layers(names: tuple[str, ...], amounts: tuple[float, ...], sizes: tuple[int, ...] | None
+                 ) -> list[tuple[tuple[str, ...], tuple[float, ...]]]:  # fmt: skip
+    """A row's flat `names` and `amounts` cut into layers of `sizes` pigments (None: one layer), bottom first."""
+    sizes = (len(names),) if sizes is None else tuple(sizes)
+    if sum(sizes) != len(names) or len(names) != len(amounts):
+        raise ValueError(f"layer sizes {sizes} do not cover {len(names)} pigments and {len(amounts)} amounts")
+    ends = np.cumsum((0, *sizes)).tolist()
+    return [(tuple(names[a:b]), tuple(amounts[a:b])) for a, b in zip(ends[:-1], ends[1:])]
+
+
+def format_stack(layers: list[tuple[tuple[str, ...], tuple[float, ...]]]) -> tuple[str, str]:
+    """Layers `[(names, amounts), ...]` (bottom first) as a table's pigment and amount text: `+` within a
+    layer, `/` between layers (`A+B/C`, `0.01+0.01/0.03`); the inverse of `parse_stack`."""
+    return ("/".join("+".join(n) for n, _ in layers),
+            "/".join("+".join(f"{a:g}" if float(a).is_integer() else repr(float(a)) for a in v) for _, v in layers))
+
+
+def parse_stack(pigment: str, amount: str, *, path: Any = None, line: int | None = None
+                ) -> tuple[tuple[str, ...], tuple[float, ...], tuple[int, ...]]:  # fmt: skip
+    """Split a glaze stack `A+B/C`, `0.01+0.01/0.03` into its layers (bottom first), each by `parse_mixture`.
+
+    **Returns:** `(names, amounts, sizes)`: every layer's names and amounts in order, and the number of
+    pigments in each layer (`(2, 1)` here; `(n,)` for a row of one layer). Bad input (an empty layer, as
+    many layers of pigments as of amounts, and `parse_mixture`'s rules per layer) raises a `DiffwashError`
+    naming the file, the line and the column.
+    """
+    p_layers, a_layers = pigment.split("/"), amount.split("/")
+    for text, parts, column in ((pigment, p_layers, "pigment"), (amount, a_layers, "amount")):
+        if len(parts) > 1 and any(not t.strip() for t in parts):
+            raise _fail(f"empty layer in {text.strip()!r} (layers are joined by '/', bottom first)", path, line,
+                        column)  # fmt: skip
+    if len(p_layers) != len(a_layers):
+        np_, na = len(p_layers), len(a_layers)
+        raise _fail(f"{np_} layer{'s' if np_ > 1 else ''} of pigments ({pigment.strip()}) but {na} layer"
+                    f"{'s' if na > 1 else ''} of amounts ({amount.strip()}): give one '/'-separated amount per "
+                    "layer", path, line, "amount")  # fmt: skip
+    names, amounts, sizes = [], [], []
+    for p, a in zip(p_layers, a_layers):
+        n, v = parse_mixture(p, a, path=path, line=line)
+        names += n
+        amounts += v
+        sizes.append(len(n))
+    return tuple(names), tuple(amounts), tuple(sizes)
 
 
 def parse_mixture(pigment: str, amount: str, *, path: Any = None, line: int | None = None) -> tuple[tuple[str, ...], tuple[float, ...]]:
@@ -237,9 +328,9 @@ def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measu
     header, body = _read_csv(path)
     col = _key_columns(header, path)
     vcols, grid = _band_columns(header, path)
-    pigs, amts, gnds, vals, lines = [], [], [], [], []
+    pigs, amts, gnds, vals, lines, sizes = [], [], [], [], [], []
     for n, row in body:
-        names, amounts = parse_mixture(row[col["pigment"]], row[col["amount"]], path=path, line=n)
+        names, amounts, size = parse_stack(row[col["pigment"]], row[col["amount"]], path=path, line=n)
         ground = row[col["ground"]].strip().lower()
         if not ground:
             raise _fail("empty ground", path, n, "ground")
@@ -254,6 +345,7 @@ def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measu
         gnds.append(ground)
         vals.append(v)
         lines.append(n)
+        sizes.append(size)
     if not pigs:
         raise _fail("has no rows of measurements", path)
     vals = np.asarray(vals, np.float64)
@@ -267,7 +359,8 @@ def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measu
             raise _fail(f"reflectance {vals[i, j]:g} is far above 1 (is the table in percent? reflectance is 0..1)",
                         path, int(lines[i]), spectral.RGB[0] if grid is None else _wl(grid[j]))  # fmt: skip
         lo = hi = np.zeros(vals.shape, bool)
-    return _split_grounds(pigs, amts, np.asarray(gnds), vals, lo, hi, grid, path, lines)
+    m = _split_grounds(pigs, amts, np.asarray(gnds), vals, lo, hi, grid, path, lines, sizes)
+    return m if np.any(m.is_stack) else replace(m, layers=None)
 
 
 def _wl(w: float) -> str:
@@ -285,7 +378,7 @@ def _rgb_values(vals: np.ndarray, linear: bool, path: Path, lines: np.ndarray) -
     return lin, lo, hi
 
 
-def _split_grounds(pigs, amts, gnds, vals, lo, hi, grid, path, lines) -> Measurements:
+def _split_grounds(pigs, amts, gnds, vals, lo, hi, grid, path, lines, sizes) -> Measurements:
     is_ground = np.array([len(p) == 1 and p[0].lower() == g for p, g in zip(pigs, gnds)])
     grounds = {}
     for g in dict.fromkeys(gnds[is_ground].tolist()):
@@ -315,7 +408,7 @@ def _split_grounds(pigs, amts, gnds, vals, lo, hi, grid, path, lines) -> Measure
     return Measurements(
         pigments=tuple(pigs[i] for i in ix), amounts=tuple(amts[i] for i in ix), ground=gnds[keep],
         values=vals[keep], lo=lo[keep], hi=hi[keep], grounds=grounds, wavelengths=grid,
-        path=os.fspath(path), lines=lines[keep],
+        path=os.fspath(path), lines=lines[keep], layers=tuple(sizes[i] for i in ix),
     )  # fmt: skip
 
 
@@ -323,14 +416,14 @@ def read_queries(path: str | os.PathLike) -> Queries:
     """Read rows to predict: `pigment,amount,ground` (other columns ignored).
 
     Pigment and ground names are checked against a library by its `predict`;
-    here: the columns, `+`-joined counts and amounts.
+    here: the columns, `+`-joined counts and amounts, `/`-joined layers.
     """
     path = Path(path)
     header, body = _read_csv(path)
     col = _key_columns(header, path)
-    pigs, amts, gnds, lines = [], [], [], []
+    pigs, amts, gnds, lines, sizes = [], [], [], [], []
     for n, row in body:
-        names, amounts = parse_mixture(row[col["pigment"]], row[col["amount"]], path=path, line=n)
+        names, amounts, size = parse_stack(row[col["pigment"]], row[col["amount"]], path=path, line=n)
         ground = row[col["ground"]].strip().lower()
         if not ground:
             raise _fail("empty ground", path, n, "ground")
@@ -338,7 +431,9 @@ def read_queries(path: str | os.PathLike) -> Queries:
         amts.append(amounts)
         gnds.append(ground)
         lines.append(n)
+        sizes.append(size)
     if not pigs:
         raise _fail("has no rows to predict", path)
+    stacked = any(len(k) > 1 for k in sizes)
     return Queries(pigments=tuple(pigs), amounts=tuple(amts), ground=np.asarray(gnds), path=os.fspath(path),
-                   lines=np.asarray(lines))  # fmt: skip
+                   lines=np.asarray(lines), layers=tuple(sizes) if stacked else None)  # fmt: skip

@@ -27,6 +27,10 @@ itself at the summed amount, whatever the weights (the measured self-mixtures
 of the NTU data are exactly that). A layer with nothing in it is the bare
 ground, with finite gradients.
 
+A *glaze stack* is layers brushed one over another, each dry before the next
+(`stack_reflectance`): each layer is a mixture as above, and the stack is
+Kubelka's layering of them over the ground, bottom up.
+
 Everything here is a pure function of arrays (pigments on the second-to-last
 axis, bands on the last), so a renderer, a LUT baker or a fit can call it
 under `jax.jit`, `jax.vmap` and `jax.grad`. Which terms the NTU measurements
@@ -58,6 +62,7 @@ __all__ = [
     "concentrations",
     "optical_depths",
     "reflectance",
+    "stack_reflectance",
     "saunderson_in",
     "saunderson_out",
     "REFERENCE_AMOUNT",
@@ -265,6 +270,54 @@ def reflectance(
     return saunderson_out(km.over(R, T, g), k2)
 
 
+def stack_reflectance(
+    K: Float[ArrayLike, "*#n p b"],
+    S: Float[ArrayLike, "*#n p b"],
+    amounts: Float[ArrayLike, "*#n l p"],
+    ground: Float[ArrayLike, "*#n b"],
+    law: AmountLaw,
+    weights: Float[ArrayLike, "*#n p"] | None = None,
+    k2: float | Array = 0.0,
+    pairs: PairTerms | None = None,
+) -> Float[Array, "*n b"]:
+    r"""Reflectance of a glaze stack: layers of mixed pigments, bottom first, over an opaque ground.
+
+    Each layer $l$ is a mixed layer of its own amounts (`optical_depths`: the
+    amount law at the layer's total, Duncan's sums, pair terms within the
+    layer), $(R_l, T_l) = \mathrm{layer}(Kx_l, Sx_l, 1)$. Kubelka's layering
+    puts them on the ground from the bottom up,
+
+    $$ \rho_0 = g, \qquad \rho_l = R_l + \frac{T_l^2\, \rho_{l-1}}{1 - R_l\, \rho_{l-1}}
+       \quad (\texttt{km.over}), $$
+
+    exact for homogeneous layers (each reflects alike from both sides) over an
+    opaque body. Saunderson's surface correction (`k2 > 0`) belongs to the
+    stack's one interface with air, its top: the ground is taken inside the
+    film once (`saunderson_in`) and the top of the stack back out once
+    (`saunderson_out`). Between layers of one binder (gum arabic on gum arabic)
+    there is no step of refractive index, so no internal surface term.
+
+    A layer with nothing in it is transparent ($R = 0$, $T = 1$: `over` returns
+    what lies beneath exactly, with finite gradients), so rows of fewer layers
+    are padded with all-zero layers anywhere in the stack. With one layer this
+    is `reflectance` (evaluated by it, so the numbers are the same).
+
+    **Arguments:** as `reflectance`, with `amounts` of shape `(..., L, P)`: each
+    layer's amount of each pigment, bottom layer first.
+
+    **Returns:** the measured reflectance, shape `(..., B)`.
+    """
+    a = _float(amounts)
+    if a.shape[-2] == 1:
+        return reflectance(K, S, a[..., 0, :], ground, law, weights, k2, pairs)
+    Kx, Sx = optical_depths(K, S, a, law, weights, pairs)  # (..., L, B)
+    R, T = km.layer(Kx, Sx, 1.0)
+    rho = saunderson_in(_float(ground), k2)
+    for i in range(a.shape[-2]):
+        rho = km.over(R[..., i, :], T[..., i, :], rho)
+    return saunderson_out(rho, k2)
+
+
 class Palette(eqx.Module):
     """Pigments that can be mixed: coefficients per band, amount laws and mixing weights.
 
@@ -293,6 +346,11 @@ class Palette(eqx.Module):
     def reflectance(self, amounts: Float[ArrayLike, "*n p"], ground: Float[ArrayLike, "*#n b"], k2: float = 0.0) -> Float[Array, "*n b"]:
         """Reflectance of layers with `amounts` of each pigment (shape `(..., P)`) over `ground`."""
         return reflectance(self.K, self.S, amounts, ground, self.law, self.weights, k2, self.pairs)
+
+    def stack_reflectance(self, amounts: Float[ArrayLike, "*n l p"], ground: Float[ArrayLike, "*#n b"], k2: float = 0.0) -> Float[Array, "*n b"]:
+        """Reflectance of glaze stacks with `amounts` of each pigment per layer (shape `(..., L, P)`, bottom
+        layer first) over `ground` (`stack_reflectance`)."""
+        return stack_reflectance(self.K, self.S, amounts, ground, self.law, self.weights, k2, self.pairs)
 
     def optical_depths(self, amounts: Float[ArrayLike, "*n p"]) -> tuple[Float[Array, "*n b"], Float[Array, "*n b"]]:
         """$Kx$, $Sx$ of layers with `amounts` of each pigment (its pair terms included)."""

@@ -1,6 +1,6 @@
 """`diffwash fit-swatch --table` for spectral tables and mixtures: one joint fit, one library file.
 
-Single-pigment RGB tables (grounds paper and black, no mixtures) keep their own fit (`diffwash.fit.fit_table`);
+Single-pigment RGB tables (grounds paper and black, no mixtures, no glaze stacks) keep their own fit (`diffwash.fit.fit_table`);
 every other table goes through `diffwash.fit.fit_mixtures`.
 """
 
@@ -18,7 +18,8 @@ from ..fit import MixModel, fit_mixtures, save_mixture_report
 
 
 def _needs_library(table: str) -> bool:
-    """Band columns named by wavelength, or a `+` in the pigment column (a glance: the readers validate)."""
+    """Band columns named by wavelength, or a `+` (mixture) or `/` (glaze stack) in the pigment column (a glance:
+    the readers validate)."""
     try:
         with open(table, newline="", encoding="utf-8-sig") as f:
             rows = csv.reader(f)
@@ -26,7 +27,7 @@ def _needs_library(table: str) -> bool:
             if any(h.replace(".", "", 1).isdigit() for h in header):
                 return True
             col = header.index("pigment") if "pigment" in header else 0
-            return any(len(r) > col and "+" in r[col] for r in rows)
+            return any(len(r) > col and ("+" in r[col] or "/" in r[col]) for r in rows)
     except (OSError, UnicodeDecodeError, csv.Error):
         return False  # the table's own reader says what is wrong with it
 
@@ -56,7 +57,8 @@ def run_library(args, m: measurements.Measurements, out: Path, report: Path | No
     fit = fit_mixtures(m, model=model, max_steps=args.max_steps)
     kind = f"{len(m.wavelengths)} bands" if m.spectral else "sRGB, fitted as smooth spectra"
     s = fit.summary()
-    print(f"{len(fit.library.names)} pigments from {len(m)} rows ({int(np.sum(m.is_mixture))} mixtures; {kind}); "
+    stacks = f"{int(np.sum(m.is_stack))} glaze stacks; " if np.any(m.is_stack) else ""
+    print(f"{len(fit.library.names)} pigments from {len(m)} rows ({int(np.sum(m.is_mixture))} mixtures; {stacks}{kind}); "
           f"model: {', '.join(f'{k}={v}' for k, v in model.describe().items())}")  # fmt: skip
     print(f"  mean CIEDE2000 {s['mean_de2000']:.2f} (median {s['median_de2000']:.2f}, 95th percentile "
           f"{s['p95_de2000']:.2f}, max {s['max_de2000']:.2f}); {100 * s['share_de_ab_5']:.1f}% within dE*ab 5")

@@ -140,18 +140,30 @@ class MixtureFit:
 
 
 def _dense(m: Measurements, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's amounts per layer and pigment, shape (N, L, P) (L = 1 for a table without stacks; rows of
+    fewer layers padded with empty, transparent layers on top), and its ground's reflectance (N, B)."""
     index = {n: i for i, n in enumerate(names)}
-    A = np.zeros((len(m), len(names)))
-    for r, (ps, amts) in enumerate(zip(m.pigments, m.amounts)):
-        for n, a in zip(ps, amts):
-            A[r, index[n]] += a
+    layers = [m.row_layers(r) for r in range(len(m))]
+    A = np.zeros((len(m), max(len(k) for k in layers), len(names)))
+    for r, row in enumerate(layers):
+        for at, (ps, amts) in enumerate(row):
+            for n, a in zip(ps, amts):
+                A[r, at, index[n]] += a
     G = np.stack([m.grounds[g] for g in m.ground])
     return A, G
 
 
+def _one_layer(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of `A` (N, L, P) that are a single layer (the rest are glaze stacks), and their amounts (n, P)."""
+    rows = np.flatnonzero(np.count_nonzero(A.sum(axis=2), axis=1) <= 1)
+    return rows, A[rows].sum(axis=1)
+
+
 def _layer(K, S, A, G, gamma, w, k2, own: bool = False):
-    """Reflectance of rows `A` (N, P) over grounds `G` (N, B); k2 may be 0 (traced)."""
+    """Reflectance of rows `A` (N, P), or glaze stacks (N, L, P) bottom layer first, over grounds `G` (N, B);
+    k2 may be 0 (traced). Layers stack as in `mixing.stack_reflectance`."""
     law = mixing.AmountLaw(gamma=gamma)
+    A = A[:, 0] if A.ndim == 3 and A.shape[1] == 1 else A  # one layer: the same arithmetic as before stacks
     if own:  # experiment: each pigment's law at its own amount, t_i(a_i)
         u = law(A) * w
         Kx, Sx = u @ K, u @ S
@@ -159,7 +171,11 @@ def _layer(K, S, A, G, gamma, w, k2, own: bool = False):
         Kx, Sx = mixing.optical_depths(K, S, A, law, w)
     g = mixing.saunderson_in(G, k2)
     R, T = km.layer(Kx, Sx, 1.0)
-    return mixing.saunderson_out(km.over(R, T, g), k2)
+    if A.ndim == 2:
+        return mixing.saunderson_out(km.over(R, T, g), k2)
+    for i in range(A.shape[1]):  # bottom layer first; k2 only at the top surface
+        g = km.over(R[:, i], T[:, i], g)
+    return mixing.saunderson_out(g, k2)
 
 
 def _shared(shared, P: int, model: MixModel):
@@ -181,11 +197,12 @@ def _init_band(m: Measurements, A: np.ndarray, names: list[str]) -> np.ndarray:
     P = len(names)
     Y = m.values
     B = Y.shape[1]
+    one, A1 = _one_layer(A)
     logK, logS = np.zeros((B, P)), np.zeros((B, P))
     for i in range(P):
-        single = np.flatnonzero((A[:, i] > 0) & (np.count_nonzero(A, axis=1) == 1))
-        rows = single if len(single) else np.flatnonzero(A[:, i] > 0)
-        r = np.clip(Y[rows[np.argmax(A[rows].sum(axis=1))]], 0.02, 0.95)
+        single = one[(A1[:, i] > 0) & (np.count_nonzero(A1, axis=1) == 1)]
+        rows = single if len(single) else np.flatnonzero(A[:, :, i].sum(axis=1) > 0)
+        r = np.clip(Y[rows[np.argmax(A[rows].sum(axis=(1, 2)))]], 0.02, 0.95)
         logK[:, i] = np.log((1 - r) ** 2 / (2 * r))
     return np.concatenate([logK, logS], axis=1)
 
@@ -270,15 +287,16 @@ def _rgb_basis(n: int = 10) -> np.ndarray:
 def _rgb_init(m: Measurements, A: np.ndarray, phi: np.ndarray, obs: spectral.Observation) -> np.ndarray:
     """Coefficients (2P, n) from each pigment's thickest single layer: K/S per channel spread over its
     wavelengths (where the channel's row of the observation weighs most), projected onto the basis."""
-    P = A.shape[1]
+    P = A.shape[2]
     W = np.abs(np.asarray(obs.to_rgb, np.float64))
     W = W / W.sum(axis=1, keepdims=True)  # (B, 3): how much each band belongs to each channel
     coef = np.zeros((2 * P, phi.shape[1]))
     pinv = np.linalg.pinv(phi)
+    one, A1 = _one_layer(A)
     for i in range(P):
-        single = np.flatnonzero((A[:, i] > 0) & (np.count_nonzero(A, axis=1) == 1))
-        rows = single if len(single) else np.flatnonzero(A[:, i] > 0)
-        r = np.clip(m.values[rows[np.argmax(A[rows].sum(axis=1))]], 0.02, 0.95)
+        single = one[(A1[:, i] > 0) & (np.count_nonzero(A1, axis=1) == 1)]
+        rows = single if len(single) else np.flatnonzero(A[:, :, i].sum(axis=1) > 0)
+        r = np.clip(m.values[rows[np.argmax(A[rows].sum(axis=(1, 2)))]], 0.02, 0.95)
         logks = W @ np.log((1 - r) ** 2 / (2 * r))
         coef[i] = pinv @ logks
     return coef
@@ -408,9 +426,10 @@ def fit_mixtures(
     w = w / np.exp(np.mean(np.log(w)))  # the weights' common scale is free: geometric mean 1
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
-    if m.spectral and model.pairs:
+    if m.spectral and model.pairs:  # from the rows of one layer (a stack's layers are not fitted pair terms)
         A, G = _dense(m, list(names))
-        terms, pairs_ok = _pairs.fit_pair_terms(palette, A, G, measured_lab(m, obs), obs.lab, k2,
+        one, A1 = _one_layer(A)
+        terms, pairs_ok = _pairs.fit_pair_terms(palette, A1, G[one], measured_lab(m, obs)[one], obs.lab, k2,
                                                 ridge=model.pair_ridge)  # fmt: skip
         palette, ok = eqx.tree_at(lambda p: p.pairs, palette, terms, is_leaf=lambda x: x is None), ok and pairs_ok
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2)
@@ -431,7 +450,7 @@ def measured_lab(m: Measurements, obs: spectral.Observation) -> np.ndarray:
 
 def residuals(lib: Library, m: Measurements) -> tuple[np.ndarray, np.ndarray]:
     """CIEDE2000 and CIE 1976 dE*ab between a library's predictions and a table's rows, shape (N,) each."""
-    pred = lib.predict(m.pigments, m.amounts, m.ground)
+    pred = lib.predict(m)
     lab_m = measured_lab(m, lib.observation)
     lab_p = pred.lab if m.spectral else np.asarray(colorimetry.linear_srgb_to_lab(jnp.asarray(pred.linear_srgb)))
     de = np.asarray(colorimetry.delta_e_2000(jnp.asarray(lab_m), jnp.asarray(lab_p)), np.float64)
@@ -440,14 +459,18 @@ def residuals(lib: Library, m: Measurements) -> tuple[np.ndarray, np.ndarray]:
 
 def _row_record(m: Measurements, de: np.ndarray, de_ab: np.ndarray) -> list[dict[str, Any]]:
     lines = m.lines if m.lines is not None else np.arange(len(m)) + 2
-    return [{"line": int(lines[i]), "pigment": "+".join(m.pigments[i]),
-             "amount": "+".join(f"{a:g}" for a in m.amounts[i]), "ground": str(m.ground[i]),
+    return [{"line": int(lines[i]), "pigment": m.row_text(i)[0], "amount": m.row_text(i)[1], "ground": str(m.ground[i]),
              "de2000": round(float(de[i]), 4), "de_ab": round(float(de_ab[i]), 4)} for i in range(len(m))]  # fmt: skip
 
 
+def _mixed_sets(m: Measurements, r: int) -> list[tuple[str, ...]]:
+    """The pigment sets (sorted names) mixed within the layers of row `r`."""
+    return [tuple(sorted(set(n))) for n, _ in m.row_layers(r) if len(set(n)) > 1]
+
+
 def pairs(m: Measurements) -> list[tuple[str, ...]]:
-    """The distinct pigment sets mixed in a table's mixture rows (sorted names), in order of appearance."""
-    return list(dict.fromkeys(tuple(sorted(set(p))) for p, mix in zip(m.pigments, m.is_mixture) if mix))
+    """The distinct pigment sets mixed in one layer in a table's rows (sorted names), in order of appearance."""
+    return list(dict.fromkeys(k for r in range(len(m)) for k in _mixed_sets(m, r)))
 
 
 def pair_folds(m: Measurements, folds: int = 4, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -458,11 +481,11 @@ def pair_folds(m: Measurements, folds: int = 4, seed: int = 0) -> list[tuple[np.
     """
     ps = pairs(m)
     order = np.random.default_rng(seed).permutation(len(ps))
-    key = [tuple(sorted(set(p))) for p in m.pigments]
+    key = [_mixed_sets(m, r) for r in range(len(m))]  # a stack is held out with any pair mixed in its layers
     out = []
     for f in range(folds):
         held = {ps[i] for i in order[f::folds]}
-        test = np.array([k in held for k in key]) & m.is_mixture
+        test = np.array([any(k in held for k in ks) for ks in key], bool)
         out.append((~test, test))
     return out
 

@@ -179,10 +179,9 @@ def save_table_report(path: str | os.PathLike, fit: Any, table: Any, held_out: A
 
 def _mixture_rows(fit: Any, m: Any, rows: Sequence[int]) -> list[tuple[str, Any, Any, float]]:
     """Squares of table rows: caption, measured and predicted linear sRGB, CIEDE2000."""
-    pred = fit.library.predict(m.pigments, m.amounts, m.ground)
+    pred = fit.library.predict(m)
     measured = m.values @ np.asarray(fit.library.observation.to_rgb) if m.spectral else m.values
-    return [(f"{'+'.join(m.pigments[r])}\n{'+'.join(f'{a:g}' for a in m.amounts[r])}", measured[r],
-             pred.linear_srgb[r], float(fit.delta_e[r])) for r in rows]  # fmt: skip
+    return [("\n".join(m.row_text(r)), measured[r], pred.linear_srgb[r], float(fit.delta_e[r])) for r in rows]
 
 
 def save_mixture_report(path: str | os.PathLike, fit: Any, m: Any, per_row: int = 10) -> None:
@@ -203,7 +202,8 @@ def save_mixture_report(path: str | os.PathLike, fit: Any, m: Any, per_row: int 
                        f"{100 * s['share_de_ab_5']:.1f}% within dE*ab 5", step=2.0)  # fmt: skip
     h = fig.add_axes([0.07, 0.07, 0.38, 0.24])
     bins = np.linspace(0, max(float(de.max()), 1e-3), 30)
-    for sel, label in ((~mix, "single paints"), (mix, "mixtures")):
+    stack = np.asarray(m.is_stack)
+    for sel, label in ((~mix & ~stack, "single paints"), (mix & ~stack, "mixtures"), (stack, "glaze stacks")):
         if sel.any():
             h.hist(de[sel], bins, alpha=0.6, label=f"{label} (mean {de[sel].mean():.2f})")
     h.set_xlabel("CIEDE2000")

@@ -55,6 +55,7 @@ from scipy.ndimage import gaussian_filter
 from . import colorimetry, km, mixing, spectral
 from ._io import atomic_paths, image_format_for, refuse_overwriting_inputs, write_png
 from .library import Library
+from .measurements import format_stack, split_layers
 from .pigments import Pigment
 from .shading import DEFAULT_PAPER
 
@@ -259,9 +260,16 @@ def _photograph(card: np.ndarray, effects: CameraEffects, rng: np.random.Generat
     return np.clip(np.asarray(colorimetry.srgb_encode(np.clip(signal, 0, 1)), np.float64), 0, 1)
 
 
-def _mixture_patch(spec: Any, i: int) -> tuple[tuple[str, ...], tuple[float, ...]]:
-    """`(pigment, coats)` of a mixture card's patch as names and coats of each (`"P1+P4", "1+2"` or tuples)."""
+def _mixture_patch(spec: Any, i: int) -> tuple[tuple[str, ...], tuple[float, ...], tuple[int, ...]]:
+    """`(pigment, coats)` of a mixture card's patch as names, coats of each and pigments per layer (`"P1+P4",
+    "1+2"` or tuples; `"P1/P4", "1/2"` for a glaze stack, bottom layer first)."""
     pigment, coats = spec
+    if isinstance(pigment, str) and "/" in pigment:
+        if not isinstance(coats, str) or coats.count("/") != pigment.count("/"):
+            raise ValueError(f"patches[{i}]: a stack needs '/'-joined coats, a group per layer, got {spec!r}")
+        layers = [_mixture_patch((p, c), i) for p, c in zip(pigment.split("/"), coats.split("/"))]
+        return (tuple(n for x in layers for n in x[0]), tuple(a for x in layers for a in x[1]),
+                tuple(len(x[0]) for x in layers))  # fmt: skip
     names = tuple(" ".join(n.split()) for n in (pigment.split("+") if isinstance(pigment, str) else pigment))
     if isinstance(coats, str):
         amounts = tuple(float(c) for c in coats.split("+"))
@@ -271,7 +279,7 @@ def _mixture_patch(spec: Any, i: int) -> tuple[tuple[str, ...], tuple[float, ...
         raise ValueError(f"patches[{i}]: needs as many coats as pigments, got {spec!r}")
     if not all(np.isfinite(a) and a >= 0 for a in amounts) or sum(amounts) <= 0:
         raise ValueError(f"patches[{i}]: coats must be finite, >= 0 and > 0 in all, got {spec!r}")
-    return names, amounts
+    return names, amounts, (len(names),)
 
 
 def _smooth_spectrum(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.ndarray:
@@ -289,14 +297,23 @@ def _paint(palette: mixing.Palette, A: Any, column: Any, thickness: Any, ground:
            k2: float, obs: spectral.Observation) -> tuple[Any, Any]:  # fmt: skip
     """A mixture card's linear sRGB, (H, W, 3), and its patches' even colours, (N, 3), in one compiled program.
 
-    Each pixel's layer is its column's (`column`, an index into the rows of amounts `A`; row 0 holds
-    nothing) with its optical depths scaled by `thickness`, over its ground spectrum.
+    Each pixel's paint is its column's (`column`, an index into the rows of amounts `A`, (N, L, P) layer by
+    layer, bottom first; row 0 holds nothing) with every layer's optical depths scaled by `thickness`, over
+    its ground spectrum (`mixing.stack_reflectance`: Saunderson's term at the top only).
     """
-    Kx, Sx = palette.optical_depths(A)
     t = thickness[..., None]
-    R, T = km.layer(Kx[column] * t, Sx[column] * t, 1.0)
-    card = mixing.saunderson_out(km.over(R, T, mixing.saunderson_in(ground, k2)), k2)
-    return obs.linear_srgb(card), obs.linear_srgb(palette.reflectance(cell_amounts, under, k2))
+    g = mixing.saunderson_in(ground, k2)
+    if A.shape[1] == 1:  # one layer: as before stacks
+        Kx, Sx = palette.optical_depths(A[:, 0])
+        R, T = km.layer(Kx[column] * t, Sx[column] * t, 1.0)
+        g = km.over(R, T, g)
+    else:
+        Kx, Sx = palette.optical_depths(A)  # (N, L, B)
+        for i in range(A.shape[1]):
+            R, T = km.layer(Kx[column, i] * t, Sx[column, i] * t, 1.0)
+            g = km.over(R, T, g)
+    card = mixing.saunderson_out(g, k2)
+    return obs.linear_srgb(card), obs.linear_srgb(palette.stack_reflectance(cell_amounts, under, k2))
 
 
 def make_mixture_card(
@@ -326,7 +343,9 @@ def make_mixture_card(
 
     - `library`: the library whose pigments are painted.
     - `patches`: one column each: `(pigment, coats)`, e.g. `("P1", 2)` or `("P1+P4", "1+2")` (or tuples
-      `(("P1", "P4"), (1, 2))`): the coats of each pigment in one layer.
+      `(("P1", "P4"), (1, 2))`): the coats of each pigment in one layer; `("P1/P4", "1/2")` is a glaze
+      stack, two coats of P4 over one of dry P1 (layers bottom first, each painted with the patch's
+      uneven thickness, `diffwash.mixing.stack_reflectance`).
     - `amount_per_coat`: the library's amount of one coat (default: its amount law's reference, where the
       thickness is 1).
     - `paper`: the library's ground the card is painted on.
@@ -351,7 +370,8 @@ def make_mixture_card(
     plan = _plan(len(specs), black, patch)
     H, W = plan.H, plan.W
 
-    A = library.amounts([n for n, _ in specs], [tuple(per_coat * a for a in amts) for _, amts in specs])
+    A = library.layer_amounts([n for n, _, _ in specs], [tuple(per_coat * a for a in amts) for _, amts, _ in specs],
+                              [k for _, _, k in specs])  # fmt: skip
     ground = np.broadcast_to(paper_spec, (H, W, len(paper_spec))).copy()
     if effects.grain > 0:
         ground *= (1 + effects.grain * _smooth_noise(rng, (H, W), 1.2))[..., None]
@@ -369,14 +389,15 @@ def make_mixture_card(
         x0, y0 = box[0], box[1]
         column[y0 : y0 + patch, x0 : x0 + patch] = j + 1
         thickness[y0 : y0 + patch, x0 : x0 + patch] = profile
-        names, amounts = specs[j]
-        coats = amounts[0] if len(amounts) == 1 else "+".join(f"{a:g}" for a in amounts)
-        cells.append({"box": box, "pigment": "+".join(names), "coats": coats, "ground": name})
+        names, amounts, sizes = specs[j]
+        pigment, coats = format_stack(split_layers(names, amounts, sizes))
+        cells.append({"box": box, "pigment": pigment, "coats": amounts[0] if len(amounts) == 1 else coats,
+                      "ground": name})  # fmt: skip
     layout["patches"] = cells
     if effects.unevenness > 0:
         thickness *= 1 + effects.unevenness * _smooth_noise(rng, (H, W), 4.0)
     under = np.stack([paper_spec if g == "paper" else ink_spec for _, g, _ in plan.cells])
-    card, colours = _paint(library.palette, np.concatenate([np.zeros((1, A.shape[1])), A]), column,
+    card, colours = _paint(library.palette, np.concatenate([np.zeros((1, *A.shape[1:])), A]), column,
                            np.maximum(thickness, 0), ground, A[[j for j, _, _ in plan.cells]], under,
                            float(library.k2), obs)  # fmt: skip
     card, colours = np.asarray(card, np.float64), np.asarray(colours, np.float64)

@@ -314,3 +314,65 @@ def test_pair_folds_keep_stacks_in_training_unless_a_layer_mixes_a_held_pair(tmp
         assert np.all(train | test) and not np.any(train & test)
     held = np.any([t for _, t in pair_folds(m, folds=3)], axis=0)
     assert held[[m.pigments.index(("A", "B", "C")), m.pigments.index(("C", "A", "B"))]].all()
+
+
+# --- swatch cards ----------------------------------------------------------------------------------------------
+
+CARD = {"paper": {"box": [0, 0, 60, 10]}, "black": {"box": [0, 40, 10, 50]},
+        "patches": [{"box": [20, 20, 30, 30], "pigment": "P1+P4/P8", "coats": "0.5+0.5/2", "ground": "black"}]}  # fmt: skip
+
+
+def test_a_layout_holds_stack_patches_and_round_trips():
+    from diffwash.fit._photo import parse_layout
+
+    L = parse_layout(CARD)
+    p = L.patches[0]
+    assert (p.pigments, p.amounts, p.layers, p.coats) == (("P1", "P4", "P8"), (0.5, 0.5, 2.0), (2, 1), 3.0)
+    assert p.to_dict() == CARD["patches"][0] and parse_layout(L.to_dict()).patches == L.patches
+
+
+@pytest.mark.parametrize("change, field, words", [
+    ({"coats": "1"}, "coats", "1 layer of coats for 2 layers of pigments (P1+P4/P8)"),
+    ({"coats": 1}, "coats", "1 layer of coats for 2 layers"),
+    ({"coats": "1+1/2/3"}, "coats", "3 layers of coats for 2 layers of pigments (P1+P4/P8)"),
+    ({"coats": "1/2"}, "coats", "1 number of coats for 2 pigments (P1+P4)"),
+    ({"pigment": "P1//P8", "coats": "1//2"}, "pigment", "empty layer in 'P1//P8'"),
+    ({"pigment": "P1/", "coats": "1/2"}, "pigment", "empty layer in 'P1/'"),
+    ({"pigment": "P1/P8", "coats": "1/"}, "coats", "empty layer in '1/'"),
+    ({"pigment": "P1/P8", "coats": "1/0"}, "coats", "must be a number of coats > 0"),
+    ({"pigment": "P1/Black", "coats": "1/1"}, "pigment", "'Black' names a ground"),
+])  # fmt: skip
+def test_bad_stack_patches_are_refused_naming_the_field(change, field, words):
+    import copy
+
+    from diffwash.fit._photo import parse_layout
+
+    layout = copy.deepcopy(CARD)
+    layout["patches"][0].update(change)
+    with pytest.raises(DiffwashError) as e:
+        parse_layout(layout, file="card.json")
+    assert str(e.value).startswith(f"card.json: patches[0].{field}: ") and words in str(e.value), str(e.value)
+
+
+def test_a_card_with_glaze_stacks_is_painted_and_fitted_jointly():
+    from diffwash import colorimetry
+    from diffwash.fit import fit_swatch_mixtures
+    from diffwash.swatchcard import make_mixture_card
+
+    truth = library.load_library("data/libraries/ntu-four.json")
+    patches = [("P1", 1), ("P1", 3), ("P4", 1), ("P4", 3), ("P1/P4", "1/1"), ("P4/P1", "1/1"), ("P1/P4", "1/2")]
+    card = make_mixture_card(truth, patches, amount_per_coat=0.02, patch=24, seed=2)
+    lay = card.layout["patches"]
+    # over paper, every patch's true colour is the library's prediction of its stack (a coat = 0.02)
+    paper = [i for i, p in enumerate(lay) if p["ground"] == "paper"]
+    rows = [measurements.parse_stack(lay[i]["pigment"], str(lay[i]["coats"])) for i in paper]
+    pred = truth.predict([tuple((n,) for n in r[0]) for r in rows], [tuple((0.02 * a,) for a in r[1]) for r in rows])
+    np.testing.assert_allclose(card.patch_colours[paper], pred.linear_srgb, atol=1e-5)
+    held = np.array([(p["pigment"], p["coats"]) == ("P1/P4", "1/2") for p in lay])
+    layout = {**card.layout, "patches": [p for p, h in zip(lay, held) if not h]}
+    fit = fit_swatch_mixtures(card.photo, layout)
+    assert fit.measurements.is_stack.sum() == 4 and fit.names == ("P1", "P4")
+    lab = lambda x: colorimetry.linear_srgb_to_lab(jnp.asarray(x, jnp.float64))  # noqa: E731
+    got = fit.library.predict(["P1/P4"] * 2, ["1/2"] * 2, [p["ground"] for p, h in zip(lay, held) if h])
+    de = np.asarray(colorimetry.delta_e_2000(lab(card.patch_colours[held]), lab(got.linear_srgb)))
+    assert fit.mean_delta_e < 1.5 and de.max() < 3.0, (fit.mean_delta_e, de)

@@ -23,7 +23,9 @@ A patch may name its paint: `pigment` is a pigment's name, or several joined
 by `+` for a mixture brushed as one layer (as in measurement tables,
 `diffwash.measurements`), and `coats` then gives the coats of each, a number
 for one pigment or as many `+`-joined numbers (>= 0, in all > 0) as there are
-pigments. A patch without `pigment` is of the card's pigment (the layout's
+pigments. Layers joined by `/` are a glaze stack, bottom first (`"pigment":
+"P1/P4", "coats": "1/2"`: two coats of P4 over one of dry P1), each layer's
+coats as above. A patch without `pigment` is of the card's pigment (the layout's
 `name`). Layouts that together name more than one pigment, or hold a mixture,
 are fitted jointly into a library (`diffwash.fit.fit_swatch_mixtures`).
 
@@ -98,7 +100,8 @@ class Patch:
     """A patch: its box, thickness in coats, the ground under it and, if the layout names it, its paint.
 
     `pigments` are the names the layout gives (empty: the card's pigment) and `amounts` the coats of each
-    (parallel to `pigments`); `coats` is the layer's thickness in coats in all (their sum).
+    (parallel to `pigments`); `coats` is the paint's thickness in coats in all (their sum). `layers`: for a
+    glaze stack (`"pigment": "A/B"`), the number of pigments in each layer, bottom first; empty for one layer.
     """
 
     box: Box
@@ -106,13 +109,20 @@ class Patch:
     ground: str
     pigments: tuple[str, ...] = ()
     amounts: tuple[float, ...] = ()
+    layers: tuple[int, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """The patch as layout-file JSON."""
         if not self.pigments:
             return {"box": self.box.tolist(), "coats": self.coats, "ground": self.ground}
-        coats = self.amounts[0] if len(self.amounts) == 1 else "+".join(f"{a:g}" for a in self.amounts)
-        return {"box": self.box.tolist(), "pigment": "+".join(self.pigments), "coats": coats, "ground": self.ground}
+        if len(self.amounts) == 1:
+            pigment, coats = self.pigments[0], self.amounts[0]
+        else:
+            ends = np.cumsum((0, *(self.layers or (len(self.pigments),)))).tolist()
+            cut = list(zip(ends[:-1], ends[1:]))
+            pigment = "/".join("+".join(self.pigments[a:b]) for a, b in cut)
+            coats = "/".join("+".join(f"{x:g}" for x in self.amounts[a:b]) for a, b in cut)
+        return {"box": self.box.tolist(), "pigment": pigment, "coats": coats, "ground": self.ground}
 
 
 @dataclass(frozen=True)
@@ -210,8 +220,8 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
             if k not in p:
                 raise _fail("missing key", file, f"{where}.{k}")
         box = _box(p["box"], file, f"{where}.box", size)
-        names = _pigment_names(p["pigment"], file, f"{where}.pigment") if "pigment" in p else ()
-        amounts = _coats(p["coats"], max(len(names), 1), file, f"{where}.coats", p.get("pigment"))
+        names, layers = _pigment_layers(p["pigment"], file, f"{where}.pigment") if "pigment" in p else ((), ())
+        amounts = _stack_coats(p["coats"], layers or (1,), file, f"{where}.coats", p.get("pigment"))
         ground = p["ground"]
         if ground not in GROUNDS:
             raise _fail(f"unknown ground {ground!r} (must be 'paper' or 'black')", file, f"{where}.ground")
@@ -219,7 +229,7 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
             raise _fail("lies on black, but the layout has no 'black' box of bare black to measure it", file,
                         f"{where}.ground")  # fmt: skip
         patches.append(Patch(box=box, coats=float(sum(amounts)), ground=ground, pigments=names,
-                             amounts=amounts if names else ()))  # fmt: skip
+                             amounts=amounts if names else (), layers=layers if len(layers) > 1 else ()))  # fmt: skip
     name = data.get("name")
     if name is not None and (not isinstance(name, str) or not name.strip()):
         raise _fail("must be a non-empty string", file, "name")
@@ -244,6 +254,40 @@ def _pigment_names(value: Any, file: Any, fld: str) -> tuple[str, ...]:
     if grounds:
         raise _fail(f"{grounds[0]!r} names a ground, not a pigment", file, fld)
     return names
+
+
+def _pigment_layers(value: Any, file: Any, fld: str) -> tuple[tuple[str, ...], tuple[int, ...]]:
+    """A patch's `pigment` as a glaze stack: layers joined by `/` (bottom first), each `_pigment_names`.
+
+    **Returns:** every layer's names in order, and the number in each layer."""
+    if not isinstance(value, str) or "/" not in value:
+        names = _pigment_names(value, file, fld)
+        return names, (len(names),)
+    parts = value.split("/")
+    if any(not t.strip() for t in parts):
+        raise _fail(f"empty layer in {value.strip()!r} (layers are joined by '/', bottom first)", file, fld)
+    layers = [_pigment_names(t, file, fld) for t in parts]
+    return tuple(n for layer in layers for n in layer), tuple(len(layer) for layer in layers)
+
+
+def _stack_coats(value: Any, layers: tuple[int, ...], file: Any, fld: str, pigment: Any) -> tuple[float, ...]:
+    """A patch's `coats` for layers of `layers` pigments: `/`-joined per layer, each as `_coats` (each layer
+    needs paint, `> 0` in all)."""
+    if len(layers) == 1 and not (isinstance(value, str) and "/" in value):
+        return _coats(value, layers[0], file, fld, pigment)
+    parts = value.split("/") if isinstance(value, str) else [value]
+    if any(isinstance(t, str) and not t.strip() for t in parts):
+        raise _fail(f"empty layer in {str(value).strip()!r} (coats are '/'-joined per layer, bottom first)", file,
+                    fld)  # fmt: skip
+    if len(parts) != len(layers):
+        what = f"{len(layers)} layer{'s' if len(layers) != 1 else ''} of pigments ({pigment.strip()})" if pigment \
+            else "the card's one pigment"  # fmt: skip
+        raise _fail(f"{len(parts)} layer{'s' if len(parts) != 1 else ''} of coats for {what}: give one "
+                    "'/'-separated group of coats per layer", file, fld)  # fmt: skip
+    starts = np.cumsum((0, *layers)).tolist()
+    names = str(pigment).replace("/", "+").split("+")
+    return tuple(c for t, k, a in zip(parts, layers, starts)
+                 for c in _coats(t, k, file, fld, "+".join(names[a : a + k])))  # fmt: skip
 
 
 def _coats(value: Any, n: int, file: Any, fld: str, pigment: Any) -> tuple[float, ...]:

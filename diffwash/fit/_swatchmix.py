@@ -1,7 +1,7 @@
 r"""Several pigments, alone and mixed, from photos of their swatch cards: one joint fit, one library.
 
-A card's layout may name each patch's paint (`"pigment": "P1+P4", "coats": "1+2"`:
-`diffwash.fit._photo`). Cards that together hold more than one pigment are
+A card's layout may name each patch's paint (`"pigment": "P1+P4", "coats": "1+2"`;
+a glaze stack `"pigment": "P1/P4", "coats": "1/2"`: `diffwash.fit._photo`). Cards that together hold more than one pigment are
 measured exactly as a single pigment's (`diffwash.fit._swatch`: the same
 calibration from the paper, the same robust patch means, clipped channels as
 bounds), and every patch becomes a row of an RGB measurement table
@@ -83,10 +83,11 @@ class SwatchMixtureFit:
 
 def _table(measured: list[_Photo], paints: list, paper: np.ndarray, black: np.ndarray | None) -> Measurements:
     """Every patch of every photo as a row of an RGB measurement table (linear colours)."""
-    pigments, amounts, ground, values, lo, hi = [], [], [], [], [], []
+    pigments, amounts, ground, values, lo, hi, layers = [], [], [], [], [], [], []
     for ph, rows in zip(measured, paints):
         for p, st, (names, coats) in zip(ph.layout.patches, ph.patches, rows):
             bound_lo, bound_hi, _ = _bounds(st)
+            layers.append(p.layers or (len(names),))
             pigments.append(names)
             amounts.append(coats)
             ground.append(p.ground)
@@ -96,7 +97,8 @@ def _table(measured: list[_Photo], paints: list, paper: np.ndarray, black: np.nd
     grounds = {"paper": paper, **({"black": black} if black is not None else {})}
     return Measurements(pigments=tuple(pigments), amounts=tuple(amounts), ground=np.asarray(ground),
                         values=np.asarray(values, np.float64), lo=np.asarray(lo, bool), hi=np.asarray(hi, bool),
-                        grounds=grounds, path=measured[0].layout.path)  # fmt: skip
+                        grounds=grounds, path=measured[0].layout.path,
+                        layers=tuple(layers) if any(len(k) > 1 for k in layers) else None)  # fmt: skip
 
 
 def _per_coat(fit: MixtureFit, scale: float) -> MixtureFit:
@@ -168,7 +170,7 @@ def fit_swatch_mixtures(
     scale = mixing.REFERENCE_AMOUNT
     scaled = replace(table, amounts=tuple(tuple(scale * a for a in row) for row in table.amounts))
     fit = _per_coat(fit_mixtures(scaled, model=model, max_steps=max_steps, rtol=rtol), scale)
-    fitted = np.asarray(fit.library.predict(table.pigments, table.amounts, table.ground).linear_srgb, np.float64)
+    fitted = np.asarray(fit.library.predict(table).linear_srgb, np.float64)
     rgb, lo, hi = table.values, table.lo, table.hi
     # As the camera would have recorded the fit: a clipped channel shows its bound when the fit lies beyond it.
     des = delta_e_displayed(np.where(lo, np.maximum(fitted, rgb), np.where(hi, np.minimum(fitted, rgb), fitted)), rgb)

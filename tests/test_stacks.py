@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from conftest import ROOT
 from jax.test_util import check_grads
 
 from diffwash import DiffwashError, km, library, measurements, mixing
@@ -359,7 +360,7 @@ def test_a_card_with_glaze_stacks_is_painted_and_fitted_jointly():
     from diffwash.fit import fit_swatch_mixtures
     from diffwash.swatchcard import make_mixture_card
 
-    truth = library.load_library("data/libraries/ntu-four.json")
+    truth = library.load_library(ROOT / "data" / "libraries" / "ntu-four.json")
     patches = [("P1", 1), ("P1", 3), ("P4", 1), ("P4", 3), ("P1/P4", "1/1"), ("P4/P1", "1/1"), ("P1/P4", "1/2")]
     card = make_mixture_card(truth, patches, amount_per_coat=0.02, patch=24, seed=2)
     lay = card.layout["patches"]
@@ -376,3 +377,17 @@ def test_a_card_with_glaze_stacks_is_painted_and_fitted_jointly():
     got = fit.library.predict(["P1/P4"] * 2, ["1/2"] * 2, [p["ground"] for p, h in zip(lay, held) if h])
     de = np.asarray(colorimetry.delta_e_2000(lab(card.patch_colours[held]), lab(got.linear_srgb)))
     assert fit.mean_delta_e < 1.5 and de.max() < 3.0, (fit.mean_delta_e, de)
+
+
+def test_swatch_card_patches_take_stacks_and_refuse_bad_ones(run_cli, tmp_path):
+    from diffwash.cli.swatch_card import parse_patches
+
+    assert parse_patches("P1:1, P1+P4/P8:0.5+0.5/2,P4/P1:1/1") == [("P1", "1"), ("P1+P4/P8", "0.5+0.5/2"),
+                                                                      ("P4/P1", "1/1")]  # fmt: skip
+    for bad in ("P1/P4:1", "P1//P4:1//1", "P1/P4:1/0", "P1/P4:1+1/1"):
+        with pytest.raises(DiffwashError, match="--patches"):
+            parse_patches(bad)
+    lib = ROOT / "data" / "libraries" / "ntu-four.json"
+    r = run_cli("swatch-card", "--library", lib, "--patches", "P1/P4:1", "-o", "card.png")
+    assert r.returncode == 2 and "--patches" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not (tmp_path / "card.png").exists()

@@ -26,7 +26,7 @@ def add_arguments(p) -> None:
     p.add_argument("--library", metavar="LIB.json",
                    help="paint a mixable library's pigments (diffwash fit-swatch --table writes one) instead of PIGMENT")  # fmt: skip
     p.add_argument("--patches", metavar="LIST",
-                   help='with --library: the patches, PIGMENTS:COATS separated by commas, e.g. "P1:1,P4:2,P1+P4:1+1"')  # fmt: skip
+                   help='with --library: the patches, PIGMENTS:COATS separated by commas, e.g. "P1:1,P4:2,P1+P4:1+1,P1/P4:1/1" (/: a glaze stack, bottom layer first)')  # fmt: skip
     p.add_argument("--amount-per-coat", type=float, metavar="A",
                    help="with --library: the amount of one coat (default: the library's reference amount)")  # fmt: skip
     p.add_argument("--layout", metavar="JSON", help="where to write the layout (default: beside the photo, .json)")
@@ -97,20 +97,32 @@ def _mixture_card(args, out: Path, layout: Path) -> int:
 
 
 def parse_patches(text: str) -> list[tuple[str, str]]:
-    """`"P1:1,P1+P4:1+2"` -> `[("P1", "1"), ("P1+P4", "1+2")]`: each patch's pigments and coats (one per pigment)."""
+    """`"P1:1,P1+P4:1+2,P1/P4:1/2"` -> `[("P1", "1"), ("P1+P4", "1+2"), ("P1/P4", "1/2")]`: each patch's pigments
+    and coats (one per pigment; `/` between the layers of a glaze stack, bottom first)."""
     patches = []
     for i, item in enumerate(text.split(",")):
         names, sep, coats = item.strip().rpartition(":")
-        names = "+".join(" ".join(n.split()) for n in names.split("+"))
-        counts = coats.strip().split("+")
-        if not sep or not names or any(not n for n in names.split("+")) or len(counts) != len(names.split("+")):
-            raise DiffwashError(f"patch {i + 1} must be PIGMENTS:COATS with a coat count per pigment (e.g. P1+P4:1+2), "
-                                f"got {item.strip()!r}", field="--patches")  # fmt: skip
-        try:
-            values = [float(c) for c in counts]
-        except ValueError:
-            raise DiffwashError(f"patch {i + 1}: coats must be numbers, got {coats.strip()!r}", field="--patches") from None
-        if any(not (0 <= v < 1e3) for v in values) or sum(values) <= 0:
-            raise DiffwashError(f"patch {i + 1}: coats must be >= 0 and > 0 in all, got {coats.strip()!r}", field="--patches")
-        patches.append((names, "+".join(f"{v:g}" for v in values)))
+        layers, groups = names.split("/"), coats.split("/")
+        if not sep or len(layers) != len(groups):
+            raise DiffwashError(f"patch {i + 1} must be PIGMENTS:COATS with a coat count per pigment (e.g. P1+P4:1+2, "
+                                f"or P1/P4:1/2 for a glaze stack), got {item.strip()!r}", field="--patches")  # fmt: skip
+        parts = [_layer_patch(i, item, n, c) for n, c in zip(layers, groups)]
+        patches.append(("/".join(n for n, _ in parts), "/".join(c for _, c in parts)))
     return patches
+
+
+def _layer_patch(i: int, item: str, names: str, coats: str) -> tuple[str, str]:
+    """One layer of a `--patches` item: its `+`-joined names and coats, checked."""
+    names = "+".join(" ".join(n.split()) for n in names.split("+"))
+    counts = coats.strip().split("+")
+    if not names or any(not n for n in names.split("+")) or len(counts) != len(names.split("+")):
+        raise DiffwashError(f"patch {i + 1} must be PIGMENTS:COATS with a coat count per pigment (e.g. P1+P4:1+2, "
+                            f"or P1/P4:1/2 for a glaze stack), got {item.strip()!r}", field="--patches")  # fmt: skip
+    try:
+        values = [float(c) for c in counts]
+    except ValueError:
+        raise DiffwashError(f"patch {i + 1}: coats must be numbers, got {coats.strip()!r}", field="--patches") from None
+    if any(not (0 <= v < 1e3) for v in values) or sum(values) <= 0:
+        raise DiffwashError(f"patch {i + 1}: coats must be >= 0 and > 0 in all (in each layer), got {coats.strip()!r}",
+                            field="--patches")  # fmt: skip
+    return names, "+".join(f"{v:g}" for v in values)

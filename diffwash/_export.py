@@ -9,13 +9,18 @@
 - `watercolour.glsl`: the model's functions and uniforms without a `main`, to
   include in an engine's own shaders;
 - `uniforms.json`: the scene's values of every uniform the shaders declare;
-- `mesh.glb`: the mesh with its normals (binary glTF, via trimesh);
+- `mesh.glb`: the mesh with its normals (binary glTF, via trimesh), and the
+  material: the LUT as a texture and the uniforms in the material's `extras`
+  (`diffwash._gltf`);
 - `scene.json`: the scene, with explicit pigments, pointing at `mesh.glb`;
 - `viewer.html`: a self-contained WebGL2 page (`diffwash._viewer`);
 - for a scene with a `"watercolour"` object, `look/`: the look's passes
   (shaders, input textures as `.npy`, `passes.json`, `uniforms.json`, a
   `README.md`; `diffwash._look_export`), the mesh's per-vertex mix and stroke
-  layer as the GLB's `_MIX` and `_STROKE` attributes, and the viewer draws the look.
+  layer as the GLB's `_MIX` and `_STROKE` attributes, and the viewer draws the look;
+- for the `threejs` target, `diffwash-material.js` (an ES module building a
+  `THREE.ShaderMaterial`), `index.html` (draws `mesh.glb` with it) and
+  `three/` (three.js's module files; `diffwash._threejs`).
 
 The folder appears whole or not at all: everything is written into a temporary
 folder beside it, which is then renamed.
@@ -32,14 +37,17 @@ import trimesh
 
 from . import lut as _lut
 from ._errors import DiffwashError
+from ._gltf import png16, with_material
 from ._io import atomic_folder
 from ._look_export import LOOK_FOLDER, LookExport, look_export, retarget, write_look
 from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
 from ._scene import Mesh, Scene, load_scene, scene_to_dict
+from ._threejs import write_threejs
+from ._version import __version__
 from ._viewer import viewer_html
 from .shading import Params
 
-__all__ = ["export", "mesh_glb", "EXPORT_FILES"]
+__all__ = ["export", "mesh_glb", "material_glb", "EXPORT_FILES"]
 
 #: What a colour-LUT export with the default format holds.
 EXPORT_FILES = (
@@ -72,6 +80,46 @@ def mesh_glb(mesh: Mesh, attributes: dict[str, np.ndarray] | None = None) -> byt
     for name, values in (attributes or {}).items():
         m.vertex_attributes[name] = np.asarray(values, np.float32)
     return m.export(file_type="glb")
+
+
+#: The uniforms `mesh.glb`'s material carries (the matrices and `eye` come from the engine's camera).
+_MATERIAL_UNIFORMS = ("k_wash", "k_specular", "shininess", "k_unlit", "gain", "bias", "wash_reduction",
+                      "light_direction", "paper", "lut_wash_max", "lut_unlit_max", "two_sided")  # fmt: skip
+
+
+def material_glb(glb: bytes, scene: Scene, params: Params, table: _lut.Lut) -> bytes:
+    """`glb` (the mesh) with the watercolour material: the LUT as 16-bit sRGB PNG texture(s), the uniforms in `extras`.
+
+    The material's `extras.diffwash` (docs/realtime.md, "glTF"): `uniforms`
+    (the scene's values, named as in the GLSL), `lut` (size, kind, encoding,
+    range, addressing), `textures` (sampler uniform -> glTF texture index),
+    `shading`, `camera`, `shaders` and the versions.
+    """
+    u = uniform_values(scene, params, lut=table)
+    encoded = _lut.encoded(table, "png16")
+    names = ["lut"] if table.kind == "colour" else ["lut_reflectance", "lut_transmittance"]
+    images = {name: png16(encoded[..., 3 * i : 3 * i + 3]) for i, name in enumerate(names)}
+    cam = scene.camera
+    extras = {
+        "format": "diffwash-material",
+        "format_version": 1,
+        "diffwash_version": __version__,
+        "uniforms": {k: u[k] for k in _MATERIAL_UNIFORMS},
+        "lut": {
+            "kind": table.kind,
+            "size": list(table.size),
+            "wash_max": float(table.wash_max),
+            "unlit_max": float(table.unlit_max),
+            "encoding": "srgb",
+            "storage": "png16",
+            "addressing": "uv = (clamp(thickness / max, 0, 1) * (size - 1) + 0.5) / size; row 0 (v = 0) is the image's top row, no unlit pigment",
+        },
+        "shading": scene.shading,
+        "camera": {k: np.asarray(getattr(cam, k), np.float64).tolist() for k in ("eye", "target", "up", "fov_y", "near", "far")},
+        "image_size": [scene.width, scene.height],
+        "shaders": "watercolour_per_pixel.vert/.frag, watercolour_per_vertex.vert/.frag, watercolour.glsl (LUT_SRGB 1 for these textures)",
+    }  # fmt: skip
+    return with_material(glb, images, extras, base_colour=u["paper"], double_sided=u["two_sided"])
 
 
 def _scene_of(scene_or_path: Scene | str | os.PathLike) -> Scene:
@@ -107,7 +155,9 @@ def export(
     - `params`: shading `Params` (default: the scene's).
     - `target`: `"webgl2"` (GLSL ES 3.00) or `"glsl330"` (OpenGL 3.3 core) for
       the shader files (the viewer always uses WebGL2 shaders from the same
-      template).
+      template); `"threejs"` also writes the three.js module, page and
+      library (`diffwash._threejs`); it draws the plain model, so a scene
+      with a watercolour look is refused.
     - `size`: LUT samples per axis (2..4096), or `(N, M)`.
     - `fmt`: LUT file format: `"png16"`, `"png8"`, `"exr"` or `"npy"`.
     - `kind`: `"colour"` or `"rt"` (R and T, composited over a `paper` uniform).
@@ -126,6 +176,12 @@ def export(
         raise DiffwashError(f"must be one of {', '.join(_lut.FORMATS)}, got {fmt!r}", field="format")
     _lut.check_size(size)
     scene = _scene_of(scene)
+    if target == "threejs" and scene.watercolour is not None:
+        raise DiffwashError(
+            "the threejs target draws the plain model only, not the watercolour look (use --target webgl2 or glsl330)",
+            file=scene.path or "scene",
+            field="watercolour",
+        )
     params = scene.params if params is None else params
     folder = Path(folder)
     if folder.exists():
@@ -143,6 +199,8 @@ def export(
         written = _write_plain(tmp, scene, params, table, target=target, fmt=fmt, kind=kind)
         viewer_look = look if look is None or target == "webgl2" else retarget(look, "webgl2")
         written += _write_scene(tmp, folder, scene, params, table, look, viewer_look)
+        if target == "threejs":
+            written += write_threejs(tmp, scene, table, params=params)
     return [folder / p.relative_to(tmp) for p in written]
 
 
@@ -171,7 +229,7 @@ def _write_scene(
 ) -> list[Path]:
     """The mesh, the scene file, the look's passes (when the scene has one) and the viewer."""
     glb = mesh_glb(scene.mesh, None if look is None else look.attributes)
-    (tmp / "mesh.glb").write_bytes(glb)
+    (tmp / "mesh.glb").write_bytes(material_glb(glb, scene, params, table))
     data = scene_to_dict(scene, params, relative_to=folder)
     data["mesh"] = "mesh.glb"
     (tmp / "scene.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")

@@ -2,7 +2,15 @@ r"""Real-time shaders: the watercolour model as GLSL, generated from the model's
 
 One template gives every shader; a target only changes the header: `glsl330`
 is desktop OpenGL 3.3 core (`#version 330 core`), `webgl2` is WebGL2 / OpenGL
-ES 3.00 (`#version 300 es` plus precision statements). For each shading mode
+ES 3.00 (`#version 300 es` plus precision statements). `threejs` is the
+`webgl2` text as a `THREE.ShaderMaterial` with `glslVersion: THREE.GLSL3`
+takes it: no header (three.js writes `#version 300 es` and the precision
+statements itself), no declarations of what three.js declares before the
+source (`position`, `normal`, `modelMatrix`, `viewMatrix`, `projectionMatrix`;
+`model`, `normal_matrix`, `view_projection` are defined from them), and, with
+`output_srgb=False`, the colour goes out through three.js's
+`linearToOutputTexel` (the renderer's output colour space: sRGB on the
+canvas, linear into a render target). For each shading mode
 there is a vertex and a fragment shader:
 
 - `per-vertex`: the vertex shader computes the wash and unlit thicknesses, which
@@ -66,6 +74,7 @@ __all__ = [
 TARGETS: dict[str, str] = {
     "glsl330": "#version 330 core\n",
     "webgl2": "#version 300 es\nprecision highp float;\nprecision highp int;\nprecision highp sampler2D;\n",
+    "threejs": "",  # THREE.ShaderMaterial (glslVersion GLSL3) writes the #version line and precision statements
 }
 #: Where the colour comes from: the colour LUT, the R/T LUT over a paper uniform, or KM per fragment.
 COLOUR_PATHS = ("lut", "lut-rt", "km")
@@ -261,6 +270,15 @@ uniform mat3 normal_matrix;             // transpose(inverse(mat3(model)))
 uniform mat4 view_projection;           // world to clip (projection * view)
 """
 
+_VERTEX_INPUTS_THREEJS = """\
+// ---- Geometry: THREE.ShaderMaterial declares the attributes position and normal (object space) and
+// the uniforms modelMatrix, viewMatrix, projectionMatrix before this source; the shaders' names for
+// them follow.
+#define model modelMatrix                                 // object to world
+#define normal_matrix transpose(inverse(mat3(modelMatrix)))
+#define view_projection (projectionMatrix * viewMatrix)  // world to clip
+"""
+
 _VERT_PER_VERTEX = """\
 out vec2 thickness;        // (wash, unlit) of the front side, interpolated perspective-correct
 out vec2 thickness_back;   // the same with the normal turned round (two-sided open meshes)
@@ -316,6 +334,26 @@ void main() {
 """
 
 
+#: three.js: a linear colour goes out through the renderer's output colour space (`linearToOutputTexel`,
+#: which three.js defines before the source): sRGB on the canvas, linear into a render target.
+_OUTPUT_THREEJS = """\
+#if OUTPUT_SRGB
+    frag_colour = vec4(colour, 1.0);
+#else
+    frag_colour = linearToOutputTexel(vec4(clamp(colour, 0.0, 1.0), 1.0));
+#endif
+"""
+
+
+def _fragment_main(template: str, target: str) -> str:
+    """A fragment `main` for `target`: three.js writes the colour through its output colour space."""
+    if target != "threejs":
+        return template
+    head, _, tail = template.partition("    frag_colour = vec4(")
+    expression, _, rest = tail.partition(", 1.0);\n")
+    return head + f"    vec3 colour = {expression};\n" + _OUTPUT_THREEJS + rest
+
+
 def _defines(colour: str, lut_srgb: bool, output_srgb: bool, flip_y: bool) -> str:
     lines = [
         "// ---- Options ------------------------------------------------------------------------------------",
@@ -348,7 +386,8 @@ def shader_sources(
 
     **Arguments:**
 
-    - `target`: `"glsl330"` (OpenGL 3.3 core) or `"webgl2"` (GLSL ES 3.00).
+    - `target`: `"glsl330"` (OpenGL 3.3 core), `"webgl2"` (GLSL ES 3.00) or
+      `"threejs"` (GLSL ES 3.00 as `THREE.ShaderMaterial` takes it, see above).
     - `shading`: `"per-vertex"` or `"per-pixel"` thickness.
     - `colour`: `"lut"` (the colour LUT), `"lut-rt"` (R and T LUTs over a `paper`
       uniform) or `"km"` (Kubelka-Munk per fragment, no LUT).
@@ -369,12 +408,13 @@ def shader_sources(
     head = TARGETS[target] + banner + "\n"
     colour_block = _defines(colour, lut_srgb, output_srgb, flip_y) + "\n" + _srgb_source() + "\n" + _colour_source(colour)
     model = _thickness_source()
+    inputs = _VERTEX_INPUTS_THREEJS if target == "threejs" else _VERTEX_INPUTS
     if shading == "per-vertex":
-        vert = head + _VERTEX_INPUTS + "\n" + model + "\n" + _VERT_PER_VERTEX
-        frag = head + colour_block + "\n" + _FRAG_PER_VERTEX
+        vert = head + inputs + "\n" + model + "\n" + _VERT_PER_VERTEX
+        frag = head + colour_block + "\n" + _fragment_main(_FRAG_PER_VERTEX, target)
     else:
-        vert = head + _VERTEX_INPUTS + "\n" + _VERT_PER_PIXEL
-        frag = head + model + "\n" + colour_block + "\n" + _FRAG_PER_PIXEL
+        vert = head + inputs + "\n" + _VERT_PER_PIXEL
+        frag = head + model + "\n" + colour_block + "\n" + _fragment_main(_FRAG_PER_PIXEL, target)
     return vert, frag
 
 

@@ -2,8 +2,10 @@
 per-vertex and per-pixel thickness, the mesh as GLB, and viewer.html, a self-contained WebGL2
 page showing the mesh with those shaders (orbit with the mouse, move the light, toggle
 per-vertex/per-pixel). For a scene with a "watercolour" object it also writes look/, the look's
-passes (shaders, textures, passes.json, uniforms.json, README.md), which the viewer draws. The
-folder is written whole or not at all.
+passes (shaders, textures, passes.json, uniforms.json, README.md), which the viewer draws.
+--target threejs also writes diffwash-material.js (an ES module returning a THREE.ShaderMaterial),
+index.html (draws mesh.glb with it; serve the folder as static files) and three/ (three.js, MIT).
+The folder is written whole or not at all.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ HELP = "export the LUT, GLSL/WebGL2 shaders, the mesh (GLB) and a WebGL2 viewer"
 def add_arguments(p) -> None:
     p.add_argument("scene", metavar="SCENE.json", help="scene file (a fitted scene file works as it is)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (must not exist or be empty)")
-    p.add_argument("--target", choices=list(shaders.TARGETS), default="webgl2", help="shader language of the .vert/.frag files (default: %(default)s)")
+    p.add_argument("--target", choices=list(shaders.TARGETS), default="webgl2", help="shader language of the .vert/.frag files; threejs adds a three.js module and page (default: %(default)s)")
     p.add_argument("--size", default="256", metavar="N", help="LUT samples per axis, 2..4096, or NxM (default: %(default)s)")
     p.add_argument("--format", choices=list(lut.FORMATS), default="png16", help="LUT file format (default: %(default)s)")
     p.add_argument("--rt", action="store_true", help="export the R/T LUT and shaders that composite over a paper uniform")
@@ -35,8 +37,16 @@ def run(args) -> int:
     written = export(
         scene, args.output, target=args.target, size=size, fmt=args.format, kind="rt" if args.rt else "colour", overwrite=args.overwrite
     )
-    top = [w.name for w in written if w.parent == Path(args.output)]
-    look = [w for w in written if w.parent != Path(args.output)]
-    print(f"wrote {args.output}/: {', '.join(top)}" + (f", look/ ({len(look)} files: the watercolour look's passes, see look/README.md)" if look else ""))
+    out = Path(args.output)
+    top = [w.name for w in written if w.parent == out]
+    look = [w for w in written if w.parent != out and w.relative_to(out).parts[0] == "look"]
+    three = [w for w in written if w.parent != out and w.relative_to(out).parts[0] == "three"]
+    print(
+        f"wrote {args.output}/: {', '.join(top)}"
+        + (f", look/ ({len(look)} files: the watercolour look's passes, see look/README.md)" if look else "")
+        + (f", three/ ({len(three)} files: three.js, MIT)" if three else "")
+    )
     print(f"open {args.output}/viewer.html in a browser with WebGL2")
+    if three:
+        print(f"three.js: serve the folder (python -m http.server -d {args.output}) and open index.html")
     return 0

@@ -156,8 +156,7 @@ def export(
     - `target`: `"webgl2"` (GLSL ES 3.00) or `"glsl330"` (OpenGL 3.3 core) for
       the shader files (the viewer always uses WebGL2 shaders from the same
       template); `"threejs"` also writes the three.js module, page and
-      library (`diffwash._threejs`); it draws the plain model, so a scene
-      with a watercolour look is refused.
+      library (`diffwash._threejs`), which draw the look too.
     - `size`: LUT samples per axis (2..4096), or `(N, M)`.
     - `fmt`: LUT file format: `"png16"`, `"png8"`, `"exr"` or `"npy"`.
     - `kind`: `"colour"` or `"rt"` (R and T, composited over a `paper` uniform).
@@ -176,12 +175,6 @@ def export(
         raise DiffwashError(f"must be one of {', '.join(_lut.FORMATS)}, got {fmt!r}", field="format")
     _lut.check_size(size)
     scene = _scene_of(scene)
-    if target == "threejs" and scene.watercolour is not None:
-        raise DiffwashError(
-            "the threejs target draws the plain model only, not the watercolour look (use --target webgl2 or glsl330)",
-            file=scene.path or "scene",
-            field="watercolour",
-        )
     params = scene.params if params is None else params
     folder = Path(folder)
     if folder.exists():
@@ -194,13 +187,15 @@ def export(
         raise DiffwashError("output folder's parent does not exist", file=folder.parent)
 
     table = _lut.bake(params, size, kind=kind)
-    look = None if scene.watercolour is None else look_export(scene, params, target=target)
+    # The look's passes for three.js are its WebGL2 shaders (RawShaderMaterials: look/ holds those).
+    look_target = "webgl2" if target == "threejs" else target
+    look = None if scene.watercolour is None else look_export(scene, params, target=look_target)
     with atomic_folder(folder) as tmp:
         written = _write_plain(tmp, scene, params, table, target=target, fmt=fmt, kind=kind)
-        viewer_look = look if look is None or target == "webgl2" else retarget(look, "webgl2")
+        viewer_look = look if look is None or look_target == "webgl2" else retarget(look, "webgl2")
         written += _write_scene(tmp, folder, scene, params, table, look, viewer_look)
         if target == "threejs":
-            written += write_threejs(tmp, scene, table, params=params)
+            written += write_threejs(tmp, scene, table, params=params, look=viewer_look)
     return [folder / p.relative_to(tmp) for p in written]
 
 

@@ -39,8 +39,10 @@ from typing import Any
 import numpy as np
 
 from ._glsl import SHADING_MODES, shader_sources, uniform_values
+from ._look_export import LookExport
 from ._version import __version__
 from .lut import Lut
+from ._viewer import look_config
 from .shading import CONSTANTS
 
 __all__ = ["THREE_VERSION", "THREEJS_FILES", "THREEJS_FOLDER", "threejs_module", "threejs_page", "write_threejs"]
@@ -60,8 +62,8 @@ def _half_floats(values: np.ndarray) -> str:
     return base64.b64encode(np.ascontiguousarray(values).astype("<f2").tobytes()).decode("ascii")
 
 
-def _config(scene: Any, lut: Lut, params: Any, title: str) -> dict[str, Any]:
-    """What the module embeds: the shaders of both modes, the uniforms, the LUT, the camera and size."""
+def _config(scene: Any, lut: Lut, params: Any, title: str, look: LookExport | None) -> dict[str, Any]:
+    """What the module embeds: the shaders of both modes, the uniforms, the LUT, the camera and size, the look."""
     colour = "lut-rt" if lut.kind == "rt" else "lut"
     shaders = {}
     for mode in SHADING_MODES:
@@ -87,6 +89,7 @@ def _config(scene: Any, lut: Lut, params: Any, title: str) -> dict[str, Any]:
             "textures": [{"uniform": n, "half_float": _half_floats(values[..., 3 * i : 3 * i + 3])} for i, n in enumerate(names)],
         },
         "camera": {k: np.asarray(getattr(cam, k), np.float64).tolist() for k in ("eye", "target", "up", "fov_y", "near", "far")},
+        "look": None if look is None else look_config(look, np.asarray(scene.mesh.vertices, np.float64)),
     }
 
 
@@ -94,11 +97,15 @@ def _template(name: str) -> str:
     return (resources.files("diffwash") / "data" / name).read_text(encoding="utf-8")
 
 
-def threejs_module(scene: Any, lut: Lut, *, params: Any = None, title: str | None = None) -> str:
-    """`diffwash-material.js` for `scene` drawn with `lut`: the ES module's text."""
+def threejs_module(scene: Any, lut: Lut, *, params: Any = None, title: str | None = None, look: LookExport | None = None) -> str:
+    """`diffwash-material.js` for `scene` drawn with `lut`: the ES module's text.
+
+    `look`: the scene's watercolour look for the `webgl2` target
+    (`diffwash._look_export.look_export`), which the module then also draws.
+    """
     p = scene.params if params is None else params
     name = title if title is not None else str(scene.path or "scene")
-    blob = json.dumps(_config(scene, lut, p, name), separators=(",", ":"))
+    blob = json.dumps(_config(scene, lut, p, name, look), separators=(",", ":"))
     return _template("threejs-material.js").replace("__VERSION__", __version__).replace("__CONFIG__", blob)
 
 
@@ -108,9 +115,9 @@ def threejs_page(scene: Any, *, title: str | None = None) -> str:
     return _template("threejs-index.html").replace("__TITLE__", html.escape(name)).replace("__THREE_VERSION__", THREE_VERSION)
 
 
-def write_threejs(folder: Path, scene: Any, lut: Lut, *, params: Any = None) -> list[Path]:
+def write_threejs(folder: Path, scene: Any, lut: Lut, *, params: Any = None, look: LookExport | None = None) -> list[Path]:
     """Write the module, the page and three.js's files into `folder` (beside `mesh.glb`)."""
-    (folder / "diffwash-material.js").write_text(threejs_module(scene, lut, params=params), encoding="utf-8")
+    (folder / "diffwash-material.js").write_text(threejs_module(scene, lut, params=params, look=look), encoding="utf-8")
     (folder / "index.html").write_text(threejs_page(scene), encoding="utf-8")
     with resources.as_file(resources.files("diffwash") / "data" / "threejs") as source:
         shutil.copytree(source, folder / THREEJS_FOLDER)

@@ -32,7 +32,7 @@ from ._version import __version__
 from .colorimetry import to_display
 from .lut import Lut
 
-__all__ = ["viewer_html"]
+__all__ = ["viewer_html", "look_config"]
 
 _FLOATS = ["k_wash", "k_specular", "shininess", "k_unlit", "gain", "bias", "wash_reduction", "lut_wash_max", "lut_unlit_max"]
 _VEC3S = ["light_direction", "eye", "paper"]
@@ -73,7 +73,9 @@ def _light_frustum(look: LookExport, light: np.ndarray, centre: np.ndarray) -> d
     }
 
 
-def _look_config(look: LookExport, centre: np.ndarray) -> dict[str, Any]:
+def look_config(look: LookExport, vertices: np.ndarray) -> dict[str, Any]:
+    """The look as a page embeds it (the viewer, the three.js module): shaders, graph, uniforms, half-float textures, light."""
+    centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
     textures = {
         name: {
             "channels": int(levels[0].shape[-1]),
@@ -133,7 +135,7 @@ def viewer_html(
         "background": to_display(np.asarray(u["paper"], np.float64)).tolist(),  # the paper as linear sRGB
         "pigments": {"wash": p.wash.name, "unlit": p.unlit.name},
         "version": __version__,
-        "look": None if look is None else _look_config(look, centre),
+        "look": None if look is None else look_config(look, vertices),
     }
     # JSON is valid JavaScript; "</" is escaped so the data cannot close the <script> element.
     blob = json.dumps(config, separators=(",", ":")).replace("</", "<\\/")

@@ -21,7 +21,7 @@ from diffwash._gltf import read_glb
 from diffwash._threejs import THREE_VERSION, THREEJS_FILES
 
 from conftest import DATA, ROOT
-from test_cli_realtime import one_line_error
+from test_look_preview import _showcase
 from test_viewer import CHROMIUM, CHROMIUM_ARGS, psnr, small_scene
 
 KNOT = DATA / "scenes" / "knot.json"
@@ -219,11 +219,26 @@ def read_png16(data):
     return np.vstack([np.asarray(r, np.uint16) for r in rows]).reshape(h, w, 3)
 
 
-def test_bad_target_and_look_scene(run_cli, tmp_path):
+@needs_chromium
+def test_page_draws_the_watercolour_look(browser, tmp_path):
+    """The showcase (every effect of the look on; the 10k knot at 256x256, as tests/test_look_export.py)."""
+    scene_path = _showcase(tmp_path, size=256)
+    export(scene_path, tmp_path / "look", target="threejs", size=64)
+    page = Page(browser, tmp_path / "look")
+    try:
+        assert page.page.evaluate("window.diffwashThree.look !== null")
+        shot, reference = page.canvas(), rendered(diffwash.load_scene(scene_path))
+        db, (db_inside, off) = psnr(shot, reference), inside(shot, reference)
+        print(f"three.js page, watercolour showcase 256x256: {db:.1f} dB against diffwash render ({db_inside:.1f} dB without {off} pixels off by more than 2 levels)")
+        assert db >= 38
+        assert page.errors() == []
+    finally:
+        page.close()
+
+
+def test_bad_target(run_cli, tmp_path):
     r = run_cli("export", KNOT, "-o", tmp_path / "out", "--target", "hlsl")
     assert r.returncode == 2 and "hlsl" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
-    r = run_cli("export", DATA / "scenes" / "watercolour.json", "-o", tmp_path / "out", "--target", "threejs")
-    one_line_error(r, "watercolour", "threejs")
     assert not (tmp_path / "out").exists()
     with pytest.raises(diffwash.DiffwashError, match="target"):
         export(KNOT, tmp_path / "out", target="hlsl")

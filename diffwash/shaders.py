@@ -1,4 +1,4 @@
-"""The real-time shaders: GLSL 3.30 and WebGL2 sources generated from the model (`diffwash._glsl`).
+"""The real-time shaders: GLSL 3.30, WebGL2 and three.js (ShaderMaterial) sources generated from the model (`diffwash._glsl`).
 
 `shader_sources(target, shading, colour=...)` gives a vertex and a fragment shader;
 `functions_source(target)` the model as a library to include in an engine's own shaders;

@@ -45,6 +45,9 @@ def add_arguments(p) -> None:
                         "several pigments, alone or mixed (fitted jointly into a library)")  # fmt: skip
     p.add_argument("--layout", action="append", metavar="LAYOUT.json",
                    help="where the paper, black band and patches are in the photo (one per photo)")  # fmt: skip
+    p.add_argument("--checker", action="store_true",
+                   help="find an X-Rite ColorChecker Classic in each photo and calibrate the camera (tone curve and "
+                        "colour matrix) from its 24 patches (needs the 'photo' extra)")  # fmt: skip
     p.add_argument("--table", metavar="CSV", help="fit every pigment of a measurement table instead of a photo")
     p.add_argument("-o", "--output", required=True, metavar="JSON", help="the pigment (or library) file to write")
     p.add_argument("--name", help="the pigment's name (default: the layout's 'name', else the photo's file name); "
@@ -92,6 +95,8 @@ def run(args) -> int:
     if args.table is not None:
         if args.photos or args.layout:
             raise DiffwashError("give either --table or photos with --layout, not both", field="--table")
+        if args.checker:
+            raise DiffwashError("only applies to photos", field="--checker")
         return _run_table(args, out, report)
     if not args.photos:
         raise DiffwashError("needs a PHOTO and its --layout, or --table CSV", field="PHOTO")
@@ -118,6 +123,15 @@ def _wrote(*paths: Path | None) -> None:
             print(f"wrote {p}")
 
 
+def _print_cameras(calibrations, photos) -> None:
+    """Each photo's camera model fitted to its references, with its leave-one-out accuracy."""
+    for c, ph in zip(calibrations, photos):
+        if c.camera is not None:
+            m = c.camera
+            print(f"{ph}: calibrated from {m.references} references of known colour: {m.name}; accuracy (mean "
+                  f"CIEDE2000 of each reference predicted from the others) {m.accuracy:.2f}")  # fmt: skip
+
+
 def _run_photos(args, out: Path, report: Path | None) -> int:
     t0 = time.perf_counter()
     if len(swatch_pigments(args.layout, name=args.name, default=Path(args.photos[0]).stem)) > 1:
@@ -125,7 +139,9 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
     model = SWATCH_MODEL
     if args.loss is not None and args.loss != SWATCH_MODEL.loss:
         model = FitModel(thickness="linear", loss=args.loss)
-    fit = fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps)
+    fit = fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps,
+                       checker=args.checker)  # fmt: skip
+    _print_cameras(fit.calibrations, args.photos)
     p = fit.pigment
     print(f"{p.name}: {len(fit.patches)} patches from {len(args.photos)} photo{'s' if len(args.photos) > 1 else ''}")
     print(f"  {'coats':>5}  {'ground':6}  {'observed sRGB':>15}  {'fitted sRGB':>15}  {'CIEDE2000':>9}")
@@ -160,7 +176,9 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
         raise DiffwashError("does not apply to cards of several pigments (fitted jointly in CIEDE2000: "
                             "docs/fitting.md)", field="--loss")  # fmt: skip
     model = MixModel(weights=args.mixing == "weights", prior=CARD_PRIOR)
-    fit = fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps)
+    fit = fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps,
+                              checker=args.checker)  # fmt: skip
+    _print_cameras(fit.calibrations, args.photos)
     n = len(args.photos)
     mixtures = sum(len(set(q.pigments)) > 1 for q in fit.patches)
     print(f"{len(fit.names)} pigments ({', '.join(fit.names)}) from {len(fit.patches)} patches ({mixtures} mixtures) "

@@ -52,7 +52,7 @@ patch is a bound, not a value, and partly clipped patches weigh less.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -61,13 +61,16 @@ from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import check_float32, finite_number, read_json
 from ..shading import DEFAULT_PAPER
-from ._noise import JpegSteps, trimmed_mean, pixel_noise
+from ._camera import CameraModel, fit_camera, needed_references, spectrum_lab
+from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
 
 __all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "patch_paints", "swatch_pigments", "Calibration",
-           "calibrate", "PatchStats", "patch_stats", "inner_box", "linearise"]  # fmt: skip
+           "calibrate", "PatchStats", "patch_stats", "inner_box", "linearise", "Reference", "calibrate_references",
+           "reference_readings", "camera_floor"]  # fmt: skip
 
 GROUNDS = ("paper", "black")
-_LAYOUT_KEYS = {"paper", "black", "patches", "name", "meta"}
+_LAYOUT_KEYS = {"paper", "black", "patches", "references", "name", "meta"}
+_REFERENCE_KEYS = {"box", "lab", "reflectance", "spectrum", "wavelengths"}
 _PATCH_KEYS = ("box", "coats", "ground", "pigment")
 
 
@@ -126,8 +129,23 @@ class Patch:
 
 
 @dataclass(frozen=True)
+class Reference:
+    """A patch of known colour: its box and its CIELAB (D65, CIE 1931 2-degree), (3,)."""
+
+    box: Box
+    lab: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"box": self.box.tolist(), "lab": [float(v) for v in self.lab]}
+
+
+@dataclass(frozen=True)
 class Layout:
-    """Where the paper, the black band and the patches are in the photo."""
+    """Where the paper, the black band, the patches and the references of known colour are in the photo.
+
+    `paper_default`: the layout gave no paper reflectance (`DEFAULT_PAPER` is assumed; a photo calibrated from
+    references measures it instead).
+    """
 
     paper: Box
     paper_reflectance: np.ndarray
@@ -135,13 +153,20 @@ class Layout:
     patches: tuple[Patch, ...]
     name: str | None = None
     path: str | None = None
+    references: tuple[Reference, ...] = ()
+    paper_default: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """The layout as layout-file JSON."""
-        out: dict[str, Any] = {"paper": {"box": self.paper.tolist(), "reflectance": self.paper_reflectance.tolist()}}
+        paper: dict[str, Any] = {"box": self.paper.tolist()}
+        if not self.paper_default:
+            paper["reflectance"] = self.paper_reflectance.tolist()
+        out: dict[str, Any] = {"paper": paper}
         if self.black is not None:
             out["black"] = {"box": self.black.tolist()}
         out["patches"] = [p.to_dict() for p in self.patches]
+        if self.references:
+            out["references"] = [r.to_dict() for r in self.references]
         if self.name:
             out["name"] = self.name
         return out
@@ -233,9 +258,68 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
     name = data.get("name")
     if name is not None and (not isinstance(name, str) or not name.strip()):
         raise _fail("must be a non-empty string", file, "name")
+    refs = _references(data.get("references", []), file, size)
     return Layout(paper=paper_box, paper_reflectance=np.asarray(refl, np.float64), black=black,
                   patches=tuple(patches), name=name.strip() if name else None,
-                  path=None if file is None else os.fspath(file))  # fmt: skip
+                  path=None if file is None else os.fspath(file), references=refs,
+                  paper_default="reflectance" not in paper)  # fmt: skip
+
+
+def _numbers(value: Any, n: int | None, file: Any, fld: str, what: str) -> np.ndarray:
+    if not isinstance(value, list) or (n is not None and len(value) != n) or not value or \
+            not all(finite_number(v) for v in value):  # fmt: skip
+        raise _fail(f"must be {what}, got {value!r}"[:200], file, fld)
+    return np.asarray(value, np.float64)
+
+
+def _references(items: Any, file: Any, size: tuple[int, int] | None) -> tuple[Reference, ...]:
+    """The layout's `references`: boxes of known colour, each with `lab`, `reflectance` or `spectrum`."""
+    if not isinstance(items, list):
+        raise _fail("must be a list of patches of known colour", file, "references")
+    out = []
+    for i, r in enumerate(items):
+        where = f"references[{i}]"
+        if not isinstance(r, dict):
+            raise _fail(f"must be a JSON object, got {type(r).__name__}", file, where)
+        for k in r:
+            if k not in _REFERENCE_KEYS:
+                raise _fail(f"unknown key (expected {', '.join(sorted(_REFERENCE_KEYS))})", file, f"{where}.{k}")
+        if "box" not in r:
+            raise _fail("missing key", file, f"{where}.box")
+        box = _box(r["box"], file, f"{where}.box", size)
+        given = [k for k in ("lab", "reflectance", "spectrum") if k in r]
+        if len(given) != 1:
+            raise _fail("needs exactly one of lab, reflectance, spectrum (with wavelengths)", file, where)
+        if "wavelengths" in r and given != ["spectrum"]:
+            raise _fail("only goes with a spectrum", file, f"{where}.wavelengths")
+        out.append(Reference(box=box, lab=_reference_lab(r, given[0], file, where)))
+    return tuple(out)
+
+
+def _reference_lab(r: dict, kind: str, file: Any, where: str) -> np.ndarray:
+    """A reference's CIELAB (D65) from its `lab`, linear-sRGB `reflectance` or `spectrum` (range-checked)."""
+    fld = f"{where}.{kind}"
+    if kind == "lab":
+        lab = _numbers(r["lab"], 3, file, fld, "[L, a, b] (CIELAB, D65)")
+        if not 0 <= lab[0] <= 100:
+            raise _fail(f"L must lie in [0, 100], got {lab[0]:g}", file, fld)
+        if np.any(np.abs(lab[1:]) > 200):
+            raise _fail(f"a and b must lie in [-200, 200], got {lab[1]:g}, {lab[2]:g}", file, fld)
+        return lab
+    if kind == "reflectance":
+        rgb = _numbers(r["reflectance"], 3, file, fld, "3 linear sRGB reflectances (red, green, blue)")
+        if np.any(rgb < 0) or np.any(rgb > 1):
+            raise _fail(f"must be linear reflectances in [0, 1], got {rgb.tolist()}", file, fld)
+        return np.asarray(colorimetry.linear_srgb_to_lab(rgb), np.float64)
+    if "wavelengths" not in r:
+        raise _fail("missing key: a spectrum needs its wavelengths (nm)", file, f"{where}.wavelengths")
+    wl = _numbers(r["wavelengths"], None, file, f"{where}.wavelengths", "wavelengths in nm")
+    sp = _numbers(r["spectrum"], len(wl), file, fld, f"{len(wl)} reflectances, one per wavelength")
+    if np.any(np.diff(wl) <= 0) or wl[0] > 400 or wl[-1] < 700:
+        raise _fail("must increase and span 400-700 nm", file, f"{where}.wavelengths")
+    if np.any(sp < 0) or np.any(sp > 1.5):
+        raise _fail("must be reflectances in [0, 1.5]", file, fld)
+    return spectrum_lab(wl, sp)
 
 
 def _name_key(name: str) -> str:
@@ -396,6 +480,8 @@ class Calibration:
     norm: float = 1.0
     notes: list[str] = field(default_factory=list)
     lack_of_fit: float = 0.0
+    camera: CameraModel | None = None
+    raw: bool = False
 
     def light(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """Relative light at pixel centres (ys, xs) (1 on average over the paper box)."""
@@ -407,8 +493,11 @@ class Calibration:
         return float(self.lack_of_fit)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"gain": self.gain.tolist(), "falloff_degree": self.degree, "falloff_pixels": self.pixels,
-                "light_range": list(self.light_range), "notes": list(self.notes)}  # fmt: skip
+        out = {"gain": self.gain.tolist(), "falloff_degree": self.degree, "falloff_pixels": self.pixels,
+               "light_range": list(self.light_range), "notes": list(self.notes)}  # fmt: skip
+        if self.camera is not None:
+            out["camera"] = self.camera.to_dict()
+        return out
 
 
 def _poly(xs: np.ndarray, ys: np.ndarray, w: int, h: int, degree: int) -> np.ndarray:
@@ -589,18 +678,78 @@ def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibra
     ib = inner_box(box)
     ys, xs = np.mgrid[ib.y0 : ib.y1, ib.x0 : ib.x1]
     light = cal.light(ys.ravel(), xs.ravel()).reshape(ys.shape)
-    values = linear[ib.y0 : ib.y1, ib.x0 : ib.x1] / light[..., None] / cal.gain
     raw = display[ib.y0 : ib.y1, ib.x0 : ib.x1]
+    d_mean = raw.reshape(-1, 3).mean(axis=0)
+    if cal.camera is not None:  # the camera model fitted to references: tone curve, light, colour correction
+        values = cal.camera.correct(cal.camera.signal(raw) / light[..., None])
+        scale = cal.camera.gain() / float(np.mean(light)) * cal.camera.curve.slope(d_mean) / _srgb_slope(d_mean)
+    else:
+        values = linear[ib.y0 : ib.y1, ib.x0 : ib.x1] / light[..., None] / cal.gain
+        scale = 1 / (float(np.mean(light)) * cal.gain) / (_srgb_slope(d_mean) if cal.raw else 1.0)
     lo_level, hi_level = _clip_levels(bits)
     clipped_lo = np.mean(raw <= lo_level, axis=(0, 1))
     clipped_hi = np.mean(raw >= hi_level, axis=(0, 1))
-    noise = pixel_noise(values, raw, 1 / (float(np.mean(light)) * cal.gain), bits, clipped_lo, clipped_hi, jpeg,
-                        reference, floor_noise)  # fmt: skip
+    noise = pixel_noise(values, raw, scale, bits, clipped_lo, clipped_hi, jpeg, reference, floor_noise)
+    cov = noise.cov
+    if cal.camera is not None:  # the camera model's own error (leave-one-out over the references) as a colour floor
+        cov = cov + np.diag(np.square(camera_floor(noise.value, cal.camera.accuracy)))
     return PatchStats(rgb=noise.value, spread=noise.spread, clipped_lo=clipped_lo, clipped_hi=clipped_hi,
-                      pixels=int(ys.size), cov=noise.cov, pixels_per_sample=noise.pixels_per_sample,
+                      pixels=int(ys.size), cov=cov, pixels_per_sample=noise.pixels_per_sample,
                       interval=noise.interval, floor=noise.floor)  # fmt: skip
+
+
+def camera_floor(rgb: np.ndarray, accuracy: float) -> np.ndarray:
+    r"""The standard deviation per channel (linear) of a colour error of `accuracy` CIEDE2000 units.
+
+    Near a lightness $L^*$ one unit of $L^*$ is a relative change of about $3 / (L^* + 16)$ in each linear
+    channel ($L^* = 116 Y^{1/3} - 16$).
+    """
+    rgb = np.maximum(np.asarray(rgb, np.float64), 1e-4)
+    L = float(colorimetry.linear_srgb_to_lab(np.clip(rgb, 0, 1))[0])
+    return 3 * accuracy / (L + 16) * rgb
 
 
 def linearise(display: np.ndarray) -> np.ndarray:
     """Display sRGB in [0, 1] to linear (the IEC 61966-2-1 transfer function), in numpy."""
     return colorimetry.from_display(display)
+
+
+def reference_readings(display: np.ndarray, cal: Calibration, boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]:
+    """Each box's trimmed-mean encoded value (n, 3) and the mean relative light over it (n,)."""
+    enc, light = [], []
+    for box in boxes:
+        ib = inner_box(box)
+        enc.append(trimmed_mean(display[ib.y0 : ib.y1, ib.x0 : ib.x1].reshape(-1, 3)))
+        ys, xs = np.mgrid[ib.y0 : ib.y1, ib.x0 : ib.x1]
+        light.append(float(np.mean(cal.light(ys.ravel(), xs.ravel()))))
+    return np.asarray(enc, np.float64).reshape(-1, 3), np.asarray(light, np.float64)
+
+
+def calibrate_references(display: np.ndarray, bits: int, layout: Layout, cal: Calibration, *, raw: bool = False,
+                         file: Any = None, extra: tuple | None = None) -> Calibration:  # fmt: skip
+    """The calibration with a camera model fitted to the layout's references (and `extra` ones).
+
+    `cal` is the paper's calibration (its light falloff); `extra` is `(encoded (m, 3), centres (m, 2) as
+    (x, y) pixels, lab (m, 3))` of references found in the photo (a ColorChecker). The curve and the light
+    are fitted twice: the light falloff again from the paper read through the first model's curve.
+    Fewer references than `needed_references()` raise a `DiffwashError` naming `references`.
+    """
+    n = len(layout.references) + (0 if extra is None else len(extra[0]))
+    need = needed_references(raw)
+    if n < need:
+        raise _fail(f"{n} reference{'s' if n != 1 else ''} of known colour, but the camera model needs at least "
+                    f"{need} (a 3x3 colour matrix scored by leave-one-out)", file, "references")  # fmt: skip
+    model = None
+    for k in range(2):
+        enc, light = reference_readings(display, cal, [r.box for r in layout.references])
+        lab = np.array([r.lab for r in layout.references]).reshape(-1, 3)
+        if extra is not None:
+            e2, centres, lab2 = extra
+            l2 = cal.light(np.asarray(centres)[:, 1], np.asarray(centres)[:, 0])
+            enc, light, lab = np.concatenate([enc, e2]), np.concatenate([light, l2]), np.concatenate([lab, lab2])
+        model = fit_camera(enc, light, lab, raw=raw)
+        if k == 0:  # the light falloff again, from the paper read through the fitted curve
+            base = calibrate(model.signal(display), display, bits, layout, file=file, degree=cal.degree)
+            cal = replace(base, notes=cal.notes)
+    assert model is not None
+    return replace(cal, camera=model, raw=raw, gain=1 / model.gain())

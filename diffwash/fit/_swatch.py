@@ -26,7 +26,7 @@ The fit reports this, with the standard deviations of the fitted logs.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -41,7 +41,9 @@ from ._kmfit import starts_for
 from ._noise import camera_noise_floor, jpeg_steps
 from ._noisefit import Observations, Uncertainty, fit_noise, uncertainty
 from ._noisefit import _prediction_and_jacobian
-from ._photo import Calibration, Layout, PatchStats, calibrate, inner_box, linearise, parse_layout, patch_stats
+from ._camera import RAW_SUFFIXES, find_checker, read_raw
+from ._photo import Calibration, Layout, PatchStats, calibrate, calibrate_references, inner_box, linearise
+from ._photo import parse_layout, patch_stats
 from ._photo import read_layout, swatch_pigments
 from ._table import delta_e_displayed
 
@@ -293,6 +295,8 @@ def _default_name(photo: Any) -> str:
 
 def _load_photo(photo: Any) -> tuple[np.ndarray, int, str | None]:
     if isinstance(photo, (str, os.PathLike)):
+        if Path(photo).suffix.lower() in RAW_SUFFIXES:
+            return read_raw(photo), 16, os.fspath(photo)
         display, bits = read_image(photo)
         return display, bits, os.fspath(photo)
     a = np.asarray(photo, np.float64)
@@ -312,18 +316,27 @@ class _Photo:
     patches: list[PatchStats]
 
 
-def _measure_all(photo: Any, layout: Any) -> tuple[list[Any], list[Any], list[_Photo]]:
+def _measure_all(photo: Any, layout: Any, checker: bool = False) -> tuple[list[Any], list[Any], list[_Photo]]:
     """The photos and layouts (one or a list of each, as many layouts as photos) and each photo measured."""
     photos = list(photo) if isinstance(photo, (list, tuple)) else [photo]
     layouts = list(layout) if isinstance(layout, (list, tuple)) else [layout]
     if len(photos) != len(layouts):
         raise DiffwashError(f"got {len(photos)} photos but {len(layouts)} layouts")
-    return photos, layouts, [_measure(ph, lay) for ph, lay in zip(photos, layouts)]
+    return photos, layouts, [_measure(ph, lay, checker) for ph, lay in zip(photos, layouts)]
 
 
-def _measure(photo: Any, layout: Any) -> _Photo:
-    """Read, validate, calibrate and measure one photo (its patches, paper and black boxes)."""
+def _raw_path(photo: Any) -> bool:
+    return isinstance(photo, (str, os.PathLike)) and Path(photo).suffix.lower() in RAW_SUFFIXES
+
+
+def _measure(photo: Any, layout: Any, checker: bool = False) -> _Photo:
+    """Read, validate, calibrate and measure one photo (its patches, paper and black boxes).
+
+    With references in the layout (or `checker`: a ColorChecker found in the photo) the photo is read through
+    a camera model fitted to them (`diffwash.fit._camera`); a raw photo is linear already.
+    """
     display, bits, photo_path = _load_photo(photo)
+    raw = _raw_path(photo)
     if not np.all(np.isfinite(display)):
         raise DiffwashError("the photo has NaN or infinite values", file=photo_path)
     H, W, _ = display.shape
@@ -333,10 +346,15 @@ def _measure(photo: Any, layout: Any) -> _Photo:
         L = read_layout(layout, size=(W, H))
     else:
         L = parse_layout(layout, size=(W, H))
-    linear = linearise(display)
-    cal = calibrate(linear, display, bits, L, file=L.path or photo_path)
+    linear = display if raw else linearise(display)
+    cal = replace(calibrate(linear, display, bits, L, file=L.path or photo_path), raw=raw)
+    extra = find_checker(display, file=photo_path) if checker else None
+    if L.references or extra is not None:
+        cal = calibrate_references(display, bits, L, cal, raw=raw, file=L.path or photo_path, extra=extra)
     steps = jpeg_steps(photo_path)
     paper = patch_stats(linear, display, bits, cal, L.paper, steps, reference=True)
+    if cal.camera is not None and L.paper_default:  # the paper as the references measure it
+        L = replace(L, paper_reflectance=np.clip(paper.rgb, 1e-3, 1.0))
     black, floor = None, None
     if L.black is not None:
         black = patch_stats(linear, display, bits, cal, L.black, steps, reference=True)
@@ -345,6 +363,10 @@ def _measure(photo: Any, layout: Any) -> _Photo:
                                 file=L.path, field="black.box")  # fmt: skip
         b = inner_box(L.black)
         floor = camera_noise_floor(linear[b.y0 : b.y1, b.x0 : b.x1], display[b.y0 : b.y1, b.x0 : b.x1], bits)
+        # A black box that is not at the camera's black (a dark board, not black ink) shows its own texture,
+        # not the sensor's noise: the noise floor is then read from each patch's own pixels.
+        if not np.any(black.clipped_lo > 0.005) and np.all(black.rgb * cal.gain > 12 * floor):
+            floor = None
     patches = [patch_stats(linear, display, bits, cal, p.box, steps, floor_noise=floor) for p in L.patches]
     return _Photo(layout=L, calibration=cal, paper=paper, black=black, patches=patches)
 
@@ -387,6 +409,7 @@ def fit_swatches(
     name: str | None = None,
     model: FitModel = SWATCH_MODEL,
     max_steps: int = 1000,
+    checker: bool = False,
 ) -> SwatchFit:
     """Fit one pigment's K and S (per coat) to photos of its swatch card.
 
@@ -404,6 +427,8 @@ def fit_swatches(
       e.g. `FitModel(thickness="linear", loss="cie94")`, fits unweighted and
       reports no intervals).
     - `max_steps`: Levenberg-Marquardt steps at most (per run).
+    - `checker`: find an X-Rite ColorChecker Classic in each photo and calibrate the camera from its 24
+      patches (with the layout's `references`, if any).
 
     **Returns:**
 
@@ -415,7 +440,7 @@ def fit_swatches(
     pigment, alone or mixed (`swatch_pigments`): those are fitted jointly by
     `fit_swatch_mixtures`.
     """
-    photos, layouts, measured = _measure_all(photo, layout)
+    photos, layouts, measured = _measure_all(photo, layout, checker)
     names = swatch_pigments([m.layout for m in measured], name=name, default=_default_name(photos[0]))
     if len(names) > 1:
         raise DiffwashError(f"the layouts hold {len(names)} pigments ({', '.join(names)}), alone or mixed: fit them "

@@ -130,6 +130,7 @@ def fit_swatch_mixtures(
     model: MixModel = MixModel(prior=CARD_PRIOR),
     max_steps: int = 400,
     rtol: float | None = None,
+    checker: bool = False,
 ) -> SwatchMixtureFit:
     """Fit every pigment of swatch cards that hold several, alone and mixed, jointly (module docstring).
 
@@ -145,13 +146,14 @@ def fit_swatch_mixtures(
       `CARD_PRIOR` times the RGB tables').
     - `max_steps`: Levenberg-Marquardt steps at most.
     - `rtol`: the solver's tolerance (default: `fit_mixtures`'s for an RGB table).
+    - `checker`: calibrate each photo from an X-Rite ColorChecker Classic found in it (as `fit_swatches`).
 
     **Returns:**
 
     A `SwatchMixtureFit`: the library (amounts in coats) and each patch's observed and fitted colour. Bad
     input raises `DiffwashError` naming the file and the field, as `fit_swatches`.
     """
-    photos, _, measured = _measure_all(photo, layout)
+    photos, _, measured = _measure_all(photo, layout, checker)
     paints = patch_paints([m.layout for m in measured], name=name, default=_default_name(photos[0]))
     for m, rows in zip(measured, paints):
         for i, (names, _) in enumerate(rows):

@@ -1,0 +1,349 @@
+r"""A camera model fitted to patches of known colour: a tone curve, then a colour matrix.
+
+A phone or camera makes its picture as: sensor signal -> white balance -> a
+colour matrix -> a tone curve (the same for every channel) -> encoding
+(JPEG). Reading a photo back to reflectance inverts that: a monotone curve
+`g` takes each channel's encoded value to a linear signal, the light falloff
+(`diffwash.fit._photo`) is divided out, and a colour correction `M` takes the
+three signals to linear sRGB reflectance:
+
+$$ \rho = M\big(g(e) / \ell(x, y)\big) . $$
+
+`g` is a Bernstein polynomial of degree 5 with non-decreasing coefficients
+(so monotone and smooth) and a free value at 0 (a lifted black or flare),
+normalised to 1 at 1; or the sRGB curve (IEC 61966-2-1), or the identity for
+raw photos. `M` is one of colour-science's colour-correction forms:
+a 3x3 matrix (Cheung 2004, 3 terms), a matrix with an offset (4 terms),
+Finlayson 2015's root-polynomial of degree 2, or a Vandermonde polynomial of
+degree 2. `g` and a 3x3 `M` are fitted together by alternating least squares
+(relative errors: each reference channel weighted by `1 / (value + 0.02)`),
+then `g` is kept and the chosen `M` refitted. Each candidate (curve x
+correction) that the references support is scored by leave-one-out over the
+references (each reference predicted by the model fitted to the others,
+CIEDE2000 to its known colour); the best is used, fitted to all references,
+and its leave-one-out mean CIEDE2000 is the calibration's accuracy.
+
+**References:**
+
+- V. Cheung, S. Westland, D. Connah, C. Ripamonti, "A comparative study of the
+  characterisation of colour cameras by means of neural networks and
+  polynomial transforms", Coloration Technology 120 (2004).
+- G. D. Finlayson, M. Mackiewicz, A. Hurlbert, "Color Correction Using
+  Root-Polynomial Regression", IEEE TIP 24 (2015).
+- colour-science, `colour.characterisation.colour_correction`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from math import comb
+from typing import Any
+
+import colour
+import numpy as np
+from colour.characterisation import polynomial_expansion_Finlayson2015, polynomial_expansion_Vandermonde
+from scipy.optimize import nnls
+
+from .. import colorimetry
+
+__all__ = ["CameraModel", "fit_camera", "CORRECTIONS", "needed_references", "lab_to_linear", "spectrum_lab"]
+
+#: Colour corrections: name -> (colour-science's expansion, fewest references for a leave-one-out score).
+CORRECTIONS = ("Cheung 2004 (3 terms)", "Cheung 2004 (4 terms)", "Finlayson 2015 (root-polynomial, degree 2)",
+               "Vandermonde (degree 2)")  # fmt: skip
+_DEGREE = 5
+_SOFT = 0.02  # the floor of the relative weights (a channel's value below it weighs as at it)
+
+
+def _expand(rgb: np.ndarray, correction: str) -> np.ndarray:
+    """The terms a colour correction is linear in, (n, terms)."""
+    x = np.asarray(rgb, np.float64)
+    if correction == CORRECTIONS[0]:
+        return x
+    if correction == CORRECTIONS[1]:
+        return np.concatenate([x, np.ones(x.shape[:-1] + (1,))], axis=-1)
+    if correction == CORRECTIONS[2]:
+        return polynomial_expansion_Finlayson2015(np.maximum(x, 0), 2, True)
+    return polynomial_expansion_Vandermonde(x, 2)
+
+
+_TERMS = {CORRECTIONS[0]: 3, CORRECTIONS[1]: 4, CORRECTIONS[2]: 6, CORRECTIONS[3]: 10}
+
+
+def _bernstein(e: np.ndarray) -> np.ndarray:
+    """Bernstein basis of degree `_DEGREE` at `e` in [0, 1], (..., degree + 1)."""
+    e = np.clip(np.asarray(e, np.float64), 0, 1)[..., None]
+    k = np.arange(_DEGREE + 1)
+    return np.array([comb(_DEGREE, int(i)) for i in k]) * e**k * (1 - e) ** (_DEGREE - k)
+
+
+@dataclass(frozen=True)
+class ToneCurve:
+    """An encoded value's linear signal: `kind` "srgb", "linear" or "fitted" (Bernstein `coefficients`)."""
+
+    kind: str
+    coefficients: np.ndarray | None = None
+
+    def __call__(self, e: np.ndarray) -> np.ndarray:
+        if self.kind == "srgb":
+            return colorimetry.from_display(np.asarray(e, np.float64))
+        if self.kind == "linear":
+            return np.asarray(e, np.float64)
+        return _bernstein(e) @ self.coefficients
+
+    def slope(self, e: np.ndarray) -> np.ndarray:
+        """d(signal)/d(encoded) at `e` (a central difference)."""
+        e = np.asarray(e, np.float64)
+        h = 1e-3
+        return (self(np.minimum(e + h, 1)) - self(np.maximum(e - h, 0))) / (np.minimum(e + h, 1) - np.maximum(e - h, 0))
+
+
+def needed_references(raw: bool = False) -> int:
+    """The fewest references a camera model needs: a 3x3 matrix on a fixed curve, scored leave-one-out."""
+    return 4
+
+
+def _needs(curve: str, correction: str) -> int:
+    """References a candidate needs: its terms (and the fitted curve's shape) plus two for leave-one-out."""
+    return _TERMS[correction] + (3 if curve == "fitted" else 1)
+
+
+def lab_to_linear(lab: Any) -> np.ndarray:
+    """CIELAB (D65, CIE 1931 2-degree) to linear sRGB."""
+    return np.asarray(colorimetry.xyz_to_linear_srgb(colorimetry.lab_to_xyz(np.asarray(lab, np.float64))), np.float64)
+
+
+def spectrum_lab(wl: Any, sp: Any) -> np.ndarray:
+    """CIELAB of a reflectance spectrum `sp` at wavelengths `wl` (nm) under D65, CIE 1931 2-degree observer."""
+    shape = colour.SpectralShape(360, 830, 5)
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
+    refl = np.interp(np.arange(360.0, 831.0, 5.0), np.asarray(wl, np.float64), np.asarray(sp, np.float64))
+    w = cmfs.values * d65.values[:, None]
+    return np.asarray(colorimetry.xyz_to_lab(refl @ w / w[:, 1].sum()), np.float64)
+
+
+def _lab(rgb: np.ndarray) -> np.ndarray:
+    return np.asarray(colorimetry.linear_srgb_to_lab(np.asarray(rgb, np.float64)), np.float64)
+
+
+def _de(pred: np.ndarray, lab: np.ndarray) -> np.ndarray:
+    """CIEDE2000 between predicted linear sRGB (may lie outside the gamut) and known Lab."""
+    return np.asarray(colorimetry.delta_e_2000(_lab(pred), lab), np.float64)
+
+
+def _weights(target: np.ndarray) -> np.ndarray:
+    return 1.0 / (np.abs(target) + _SOFT)
+
+
+def _solve_matrix(F: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Per output channel, weighted least squares of `target[:, c]` on the terms `F`, (terms, 3)."""
+    out = np.empty((F.shape[1], 3))
+    for c in range(3):
+        w = _weights(target[:, c])[:, None]
+        A = F * w
+        out[:, c] = np.linalg.lstsq(A.T @ A + 1e-9 * np.eye(F.shape[1]), A.T @ (target[:, c] * w[:, 0]), rcond=None)[0]
+    return out
+
+
+def _fit_curve(e: np.ndarray, light: np.ndarray, target: np.ndarray, iterations: int = 30) -> tuple[ToneCurve, np.ndarray]:
+    """A shared monotone curve and a 3x3 matrix by alternating least squares (module docstring)."""
+    curve = ToneCurve("srgb")
+    # Start at the sRGB curve: Bernstein coefficients that reproduce it at the nodes.
+    nodes = np.linspace(0, 1, 41)
+    c0 = np.linalg.lstsq(_bernstein(nodes), colorimetry.from_display(nodes), rcond=None)[0]
+    curve = ToneCurve("fitted", np.maximum.accumulate(c0))
+    M = _solve_matrix(curve(e) / light[:, None], target)
+    # The curve in increments: c_k = c_0 + sum_{j <= k} d_j (d_j >= 0), c_0 = a - b (both >= 0).
+    B = _bernstein(e.reshape(-1))  # (3n, K+1)
+    cum = np.cumsum(B[:, ::-1], axis=1)[:, ::-1][:, 1:]  # sum_{k >= j} B_k, for j = 1..K
+    design = np.concatenate([np.ones((B.shape[0], 1)), -np.ones((B.shape[0], 1)), cum], axis=1)
+    for _ in range(iterations):
+        try:
+            Minv = np.linalg.inv(M)
+        except np.linalg.LinAlgError:
+            break
+        want = (target @ Minv) * light[:, None]  # what the curve should give per channel
+        w = _weights(want.reshape(-1))
+        x, _ = nnls(design * w[:, None], want.reshape(-1) * w)
+        coef = x[0] - x[1] + np.concatenate([[0.0], np.cumsum(x[2:])])
+        top = coef[-1]
+        if not np.isfinite(top) or top <= 1e-9:
+            break
+        curve = ToneCurve("fitted", coef / top)
+        M = _solve_matrix(curve(e) / light[:, None], target)
+    return curve, M
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """A fitted camera model: `curve` (encoded -> linear signal), `correction` and its `matrix` (terms, 3).
+
+    **Fields:** `accuracy` (the leave-one-out mean CIEDE2000 over the references), `references` (how many),
+    `scores` (each candidate's leave-one-out mean CIEDE2000), `residuals` (each reference's leave-one-out
+    CIEDE2000 with the chosen model).
+    """
+
+    curve: ToneCurve
+    correction: str
+    matrix: np.ndarray
+    accuracy: float
+    references: int
+    scores: dict[str, float] = field(default_factory=dict)
+    residuals: np.ndarray | None = None
+
+    def signal(self, encoded: np.ndarray) -> np.ndarray:
+        """Linear camera signal of encoded values (the tone curve undone), same shape."""
+        return self.curve(encoded)
+
+    def correct(self, signal: np.ndarray) -> np.ndarray:
+        """Linear sRGB reflectance of light-corrected signals (..., 3)."""
+        s = np.asarray(signal, np.float64)
+        return (_expand(s.reshape(-1, 3), self.correction) @ self.matrix).reshape(s.shape)
+
+    @property
+    def name(self) -> str:
+        return f"{ {'srgb': 'sRGB curve', 'linear': 'linear (raw)', 'fitted': 'fitted tone curve'}[self.curve.kind]}" \
+               f" + {self.correction}"  # fmt: skip
+
+    def gain(self) -> np.ndarray:
+        """The model's gain per channel near neutral (reflectance per unit of signal), (3,)."""
+        s = np.full((1, 3), 0.5)
+        d = np.eye(3) * 1e-3
+        return np.array([(self.correct(s + d[c])[0, c] - self.correct(s - d[c])[0, c]) / 2e-3 for c in range(3)])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model": self.name, "references": self.references,
+                "leave_one_out_mean_delta_e_2000": round(float(self.accuracy), 4),
+                "candidates": {k: round(float(v), 4) for k, v in self.scores.items()},
+                "tone_curve": None if self.curve.coefficients is None else
+                [round(float(c), 6) for c in self.curve.coefficients],
+                "matrix": np.round(self.matrix, 6).tolist()}  # fmt: skip
+
+
+def _curve(kind: str, e: np.ndarray, light: np.ndarray, target: np.ndarray) -> ToneCurve:
+    return _fit_curve(e, light, target)[0] if kind == "fitted" else ToneCurve(kind)
+
+
+def _fit_one(kind: str, correction: str, e: np.ndarray, light: np.ndarray, target: np.ndarray
+             ) -> tuple[ToneCurve, np.ndarray]:  # fmt: skip
+    curve = _curve(kind, e, light, target)
+    return curve, _solve_matrix(_expand(curve(e) / light[:, None], correction), target)
+
+
+def _candidates(n: int, raw: bool) -> list[tuple[str, str]]:
+    curves = ("linear",) if raw else ("srgb", "fitted")
+    return [(c, m) for c in curves for m in CORRECTIONS if n >= _needs(c, m)]
+
+
+def fit_camera(encoded: Any, light: Any, lab: Any, *, raw: bool = False) -> CameraModel:
+    """Fit the camera model to references (module docstring), choosing it by leave-one-out.
+
+    **Arguments:** `encoded` (n, 3): each reference's mean encoded value in [0, 1] (linear for a raw photo);
+    `light` (n,): the relative light at each; `lab` (n, 3): their known CIELAB (D65); `raw`: the values are
+    linear already (the curve is the identity).
+
+    **Returns:** the `CameraModel`. Needs at least `needed_references()` references (the caller checks).
+    """
+    e = np.asarray(encoded, np.float64)
+    light = np.asarray(light, np.float64)
+    lab = np.asarray(lab, np.float64)
+    target = lab_to_linear(lab)
+    n = len(e)
+    scores, loo = {}, {}
+    curves: dict[tuple[str, int], ToneCurve] = {}  # the curve of each fold, shared by the corrections
+    for kind, corr in _candidates(n, raw):
+        pred = np.empty((n, 3))
+        for i in range(n):
+            keep = np.arange(n) != i
+            if (kind, i) not in curves:
+                curves[kind, i] = _curve(kind, e[keep], light[keep], target[keep])
+            curve = curves[kind, i]
+            M = _solve_matrix(_expand(curve(e[keep]) / light[keep, None], corr), target[keep])
+            pred[i] = _expand(curve(e[i : i + 1]) / light[i], corr) @ M
+        de = _de(pred, lab)
+        key = f"{ {'srgb': 'sRGB curve', 'linear': 'linear (raw)', 'fitted': 'fitted tone curve'}[kind]} + {corr}"
+        scores[key] = float(np.mean(de)) if np.all(np.isfinite(de)) else float("inf")
+        loo[(kind, corr)] = (scores[key], de)
+    (kind, corr), (best, de) = min(loo.items(), key=lambda kv: kv[1][0])
+    curve, M = _fit_one(kind, corr, e, light, target)
+    return CameraModel(curve=curve, correction=corr, matrix=M, accuracy=best, references=n, scores=scores,
+                       residuals=de)  # fmt: skip
+
+
+#: File suffixes read as raw photos (through rawpy / LibRaw).
+RAW_SUFFIXES = (".dng", ".cr2", ".cr3", ".crw", ".nef", ".nrw", ".arw", ".srf", ".sr2", ".orf", ".rw2", ".raf",
+                ".pef", ".srw", ".x3f", ".3fr", ".iiq", ".rwl", ".mrw", ".kdc", ".dcr", ".erf", ".mos")  # fmt: skip
+_EXTRA = "pip install 'diffwash[photo]'"
+
+
+def read_raw(path: Any) -> np.ndarray:
+    """A raw photo (DNG, CR2, NEF, ARW, ...) as linear camera values in [0, 1], (H, W, 3), as displayed.
+
+    Demosaiced by LibRaw (rawpy) with no gamma, no automatic brightening, the camera's white balance where
+    the file has one, in the camera's colour matrix to linear sRGB primaries; the camera model or the paper's
+    calibration does the rest. Orientation as the file says.
+    """
+    from .._errors import DiffwashError
+
+    try:
+        import rawpy
+    except ImportError:
+        raise DiffwashError(f"reading raw photos needs rawpy: {_EXTRA}", file=path) from None
+    try:
+        with rawpy.imread(str(path)) as r:
+            rgb = r.postprocess(gamma=(1, 1), no_auto_bright=True, output_bps=16, use_camera_wb=True,
+                                output_color=rawpy.ColorSpace.sRGB, user_flip=None)  # fmt: skip
+    except (rawpy.LibRawError, OSError, ValueError) as e:
+        raise DiffwashError(f"cannot read as a raw photo: {e}", file=path) from None
+    return np.asarray(rgb, np.float64) / 65535.0
+
+
+def checker_references() -> np.ndarray:
+    """CIELAB (D65) of the 24 patches of an X-Rite ColorChecker Classic (colour-science's "ColorChecker24 -
+    After November 2014", D50, adapted to D65 with Bradford's transform), in the chart's order, (24, 3)."""
+    cc = colour.CCS_COLOURCHECKERS["ColorChecker24 - After November 2014"]
+    XYZ = colour.xyY_to_XYZ(np.array(list(cc.data.values())))
+    d65 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    XYZ = colour.chromatic_adaptation(XYZ, colour.xy_to_XYZ(cc.illuminant), colour.xy_to_XYZ(d65),
+                                      method="Von Kries", transform="Bradford")  # fmt: skip
+    return np.asarray(colorimetry.xyz_to_lab(XYZ), np.float64)
+
+
+def find_checker(display: np.ndarray, file: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Find an X-Rite ColorChecker Classic in a photo (colour-checker-detection's segmentation).
+
+    **Returns:** `(encoded (24, 3), centres (24, 2) as (x, y) pixels, lab (24, 3))`: each patch's mean
+    encoded value, where it is and its known colour. A photo with no checker found raises `DiffwashError`.
+    """
+    from .._errors import DiffwashError
+
+    try:
+        import colour_checker_detection as ccd
+    except ImportError:
+        raise DiffwashError(f"--checker needs colour-checker-detection: {_EXTRA}", file=file) from None
+    img = np.asarray(display, np.float32)
+    found = ccd.detect_colour_checkers_segmentation(img, additional_data=True)
+    if not found:
+        raise DiffwashError("no X-Rite ColorChecker Classic found in the photo (24 patches, 4 x 6, fully in view)",
+                            file=file, field="--checker")  # fmt: skip
+    data = found[0]
+    colours = np.asarray(data.swatch_colours, np.float64)
+    centres = _checker_centres(data, img.shape)
+    return colours, centres, checker_references()
+
+
+def _checker_centres(data: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """The 24 patches' centres (x, y) in the photo's pixels, from the checker's quadrilateral.
+
+    The detector works on the photo resized to its working width (1440 pixels); the patches lie on a 6 x 4
+    grid inside the quadrilateral (interpolated bilinearly between its corners: the centres set only where
+    the light falloff is read, which varies slowly).
+    """
+    q = np.asarray(data.quadrilateral, np.float64).reshape(4, 2) * (shape[1] / 1440.0)
+    u = (np.arange(6) + 0.5) / 6
+    v = (np.arange(4) + 0.5) / 4
+    vv, uu = np.meshgrid(v, u, indexing="ij")
+    uu, vv = uu.ravel()[:, None], vv.ravel()[:, None]
+    c = (1 - uu) * (1 - vv) * q[0] + uu * (1 - vv) * q[1] + uu * vv * q[2] + (1 - uu) * vv * q[3]
+    return np.clip(c, 0, [shape[1] - 1, shape[0] - 1])

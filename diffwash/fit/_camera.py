@@ -45,6 +45,7 @@ from colour.characterisation import polynomial_expansion_Finlayson2015, polynomi
 from scipy.optimize import nnls
 
 from .. import colorimetry
+from .._errors import DiffwashError
 
 __all__ = ["CameraModel", "fit_camera", "CORRECTIONS", "needed_references", "lab_to_linear", "spectrum_lab"]
 
@@ -165,7 +166,10 @@ def _fit_curve(e: np.ndarray, light: np.ndarray, target: np.ndarray, iterations:
             break
         want = (target @ Minv) * light[:, None]  # what the curve should give per channel
         w = _weights(want.reshape(-1))
-        x, _ = nnls(design * w[:, None], want.reshape(-1) * w)
+        try:
+            x, _ = nnls(design * w[:, None], want.reshape(-1) * w, maxiter=50 * design.shape[1])
+        except RuntimeError:  # no solution within the iterations (degenerate references): keep the last curve
+            break
         coef = x[0] - x[1] + np.concatenate([[0.0], np.cumsum(x[2:])])
         top = coef[-1]
         if not np.isfinite(top) or top <= 1e-9:
@@ -284,8 +288,6 @@ def read_raw(path: Any) -> np.ndarray:
     the file has one, in the camera's colour matrix to linear sRGB primaries; the camera model or the paper's
     calibration does the rest. Orientation as the file says.
     """
-    from .._errors import DiffwashError
-
     try:
         import rawpy
     except ImportError:
@@ -316,8 +318,6 @@ def find_checker(display: np.ndarray, file: Any = None) -> tuple[np.ndarray, np.
     **Returns:** `(encoded (24, 3), centres (24, 2) as (x, y) pixels, lab (24, 3))`: each patch's mean
     encoded value, where it is and its known colour. A photo with no checker found raises `DiffwashError`.
     """
-    from .._errors import DiffwashError
-
     try:
         import colour_checker_detection as ccd
     except ImportError:

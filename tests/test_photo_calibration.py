@@ -1,0 +1,117 @@
+"""Photos calibrated from patches of known colour: the camera model, the layout's references, --checker, raw."""
+
+import json
+
+import numpy as np
+import pytest
+
+from diffwash import DiffwashError, colorimetry
+from diffwash._io import write_png
+from diffwash.fit._camera import checker_references, fit_camera, lab_to_linear
+from diffwash.fit._photo import parse_layout
+from diffwash.swatchcard import make_swatch_card
+from diffwash import pigments
+
+
+def _s_curve(x):
+    """A phone-like tone curve: sRGB, steeper mid-tones, lifted blacks."""
+    e = colorimetry.to_display(np.clip(x, 0, 1))
+    return 0.05 + 0.93 * np.clip(e + 0.3 * (e - 0.5) * (1 - np.abs(2 * e - 1)), 0, 1)
+
+
+CROSSTALK = np.array([[0.82, 0.15, 0.03], [0.10, 0.80, 0.10], [0.02, 0.18, 0.80]]) * [1.08, 1.0, 0.9]
+
+
+def test_camera_model_undoes_a_tone_curve_and_crosstalk():
+    lab = checker_references()
+    enc = _s_curve(np.clip(lab_to_linear(lab), 0, None) @ CROSSTALK.T)
+    model = fit_camera(enc, np.ones(24), lab)
+    assert model.curve.kind == "fitted" and model.accuracy < 1.5, model.scores
+    # The sRGB curve and a 3x3 matrix (colour-science's default correction after sRGB linearisation) is far off.
+    assert model.scores["sRGB curve + Cheung 2004 (3 terms)"] > model.accuracy
+    pred = model.correct(model.signal(enc))
+    assert np.mean(np.asarray(colorimetry.delta_e_2000(colorimetry.linear_srgb_to_lab(np.clip(pred, 0, None)),
+                                                       lab))) < 1.0  # fmt: skip
+
+
+def _layout(**extra):
+    return {"paper": {"box": [0, 0, 10, 10]}, "patches": [{"box": [20, 20, 30, 30], "coats": 1, "ground": "paper"}],
+            **extra}  # fmt: skip
+
+
+@pytest.mark.parametrize("ref, field, words", [
+    ({"box": [40, 0, 50, 10], "lab": [120, 0, 0]}, "references[0].lab", "L must lie in [0, 100]"),
+    ({"box": [40, 0, 50, 10], "lab": [50, 300, 0]}, "references[0].lab", "[-200, 200]"),
+    ({"box": [90, 0, 150, 10], "lab": [50, 0, 0]}, "references[0].box", "outside the 100x80 photo"),
+    ({"box": [40, 0, 50, 10], "reflectance": [0.5, 1.2, 0.1]}, "references[0].reflectance", "in [0, 1]"),
+    ({"box": [40, 0, 50, 10], "lab": [50, 0, 0], "reflectance": [0.5, 0.5, 0.5]}, "references[0]", "exactly one"),
+    ({"box": [40, 0, 50, 10], "spectrum": [0.5, 0.5]}, "references[0].wavelengths", "missing"),
+    ({"box": [40, 0, 50, 10], "spectrum": [0.5, 0.5], "wavelengths": [450, 650]}, "references[0].wavelengths",
+     "400-700"),
+])  # fmt: skip
+def test_bad_references_name_the_field(ref, field, words):
+    with pytest.raises(DiffwashError) as e:
+        parse_layout(_layout(references=[ref]), file="card.json", size=(100, 80))
+    assert f"card.json: {field}:" in str(e.value) and words in str(e.value)
+
+
+def test_reference_forms_agree():
+    lab = [52.0, 18.0, -20.0]
+    rgb = lab_to_linear(np.array(lab)).tolist()
+    wl = list(range(380, 790, 10))
+    L = parse_layout(_layout(references=[{"box": [40, 0, 50, 10], "lab": lab},
+                                         {"box": [40, 0, 50, 10], "reflectance": rgb},
+                                         {"box": [40, 0, 50, 10], "spectrum": [0.5] * len(wl), "wavelengths": wl}]),
+                     size=(100, 80))  # fmt: skip
+    np.testing.assert_allclose(L.references[1].lab, lab, atol=0.01)
+    np.testing.assert_allclose(L.references[2].lab, [76.07, 0, 0], atol=0.2)  # a flat 50% grey
+    assert parse_layout(L.to_dict(), size=(100, 80)).references[0].box == L.references[0].box
+
+
+def _card_with_references(tmp_path, n):
+    """A generated swatch card with a strip of `n` checker patches of known colour above it (as the camera saw
+    them: its exposure and white balance, sRGB-encoded)."""
+    card = make_swatch_card(pigments.load("Quinacridone Rose"), coats=(1, 2), patch=40, seed=3)
+    H, W, _ = card.photo.shape
+    side, strip = 24, 76
+    lab = checker_references()[:: max(1, 24 // n)][:n]
+    photo = np.concatenate([np.repeat(card.photo[:1], strip, axis=0), card.photo], axis=0)
+    gains = card.effects.exposure * np.asarray(card.effects.white_balance)
+    refs = []
+    for i, c in enumerate(lab):
+        x0, y0 = 8 + (i % 4) * (side + 6), 8 + (i // 4) * (side + 6)
+        photo[y0 : y0 + side, x0 : x0 + side] = colorimetry.to_display(np.clip(lab_to_linear(c) * gains, 0, 1))
+        refs.append({"box": [x0, y0, x0 + side, y0 + side], "lab": c.tolist()})
+    assert n <= 8 and 8 + 4 * (side + 6) < W
+    layout = json.loads(json.dumps(card.layout))
+    shift = lambda b: [b[0], b[1] + strip, b[2], b[3] + strip]  # noqa: E731
+    layout["paper"]["box"] = shift(layout["paper"]["box"])
+    layout["black"]["box"] = shift(layout["black"]["box"])
+    for p in layout["patches"]:
+        p["box"] = shift(p["box"])
+    layout["references"] = refs
+    write_png(tmp_path / "card.png", photo, bits=16)
+    (tmp_path / "card.json").write_text(json.dumps(layout))
+
+
+def test_fit_swatch_reads_the_photo_through_references(run_cli, tmp_path):
+    _card_with_references(tmp_path, 8)
+    r = run_cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "rose.json")
+    assert r.returncode == 0, r.stderr
+    assert "calibrated from 8 references of known colour" in r.stdout
+    cal = json.loads((tmp_path / "rose.json").read_text())["fit"]["calibration"][0]["camera"]
+    assert cal["references"] == 8 and cal["leave_one_out_mean_delta_e_2000"] < 3
+
+
+def test_too_few_references_exit_2_and_write_nothing(run_cli, tmp_path):
+    _card_with_references(tmp_path, 3)
+    r = run_cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "rose.json")
+    assert r.returncode == 2 and "card.json: references:" in r.stderr and "at least 4" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "rose.json").exists()
+
+
+def test_checker_not_found_exit_2(run_cli, tmp_path):
+    _card_with_references(tmp_path, 4)
+    r = run_cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "rose.json", "--checker")
+    assert r.returncode == 2 and "no X-Rite ColorChecker Classic found" in r.stderr and "--checker" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "rose.json").exists()

@@ -115,3 +115,35 @@ def test_checker_not_found_exit_2(run_cli, tmp_path):
     r = run_cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "rose.json", "--checker")
     assert r.returncode == 2 and "no X-Rite ColorChecker Classic found" in r.stderr and "--checker" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "rose.json").exists()
+
+
+def test_raw_photo_is_read_linear(run_cli, tmp_path):
+    # A DNG written here (tests/dng_writer.py: an RGGB mosaic of linear values) comes back linear: no gamma, no
+    # brightening; fit-swatch fits a card from it as from the PNG.
+    from dng_writer import write_dng
+
+    card = make_swatch_card(pigments.load("Quinacridone Rose"), coats=(1, 2), patch=40, seed=3)
+    H, W, _ = card.photo.shape
+    linear = colorimetry.from_display(card.photo[: H // 2 * 2, : W // 2 * 2])
+    write_dng(tmp_path / "card.dng", linear)
+    from diffwash.fit._camera import read_raw
+
+    back = read_raw(tmp_path / "card.dng")
+    med = lambda a, b: np.median(a[b[1] + 4 : b[3] - 4, b[0] + 4 : b[2] - 4].reshape(-1, 3), axis=0)  # noqa: E731
+    # Linear: one scale for every box and channel (LibRaw may scale the whole range).
+    ratios = [med(back, b) / med(linear, b) for b in [card.layout["paper"]["box"]] +
+              [p["box"] for p in card.layout["patches"]]]  # fmt: skip
+    np.testing.assert_allclose(ratios, ratios[0][0], rtol=0.03)
+    (tmp_path / "card.json").write_text(json.dumps(card.layout))
+    r = run_cli("fit-swatch", "card.dng", "--layout", "card.json", "-o", "rose.json")
+    assert r.returncode == 0, r.stderr
+    np.testing.assert_allclose(pigments.load(tmp_path / "rose.json").K, pigments.load("Quinacridone Rose").K,
+                               rtol=0.15)  # fmt: skip
+
+
+def test_a_file_that_is_not_raw_is_one_line(run_cli, tmp_path):
+    (tmp_path / "card.dng").write_bytes(b"not a raw photo")
+    (tmp_path / "card.json").write_text(json.dumps(_layout()))
+    r = run_cli("fit-swatch", "card.dng", "--layout", "card.json", "-o", "rose.json")
+    assert r.returncode == 2 and "card.dng: cannot read as a raw photo" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "rose.json").exists()

@@ -147,3 +147,27 @@ def test_a_file_that_is_not_raw_is_one_line(run_cli, tmp_path):
     r = run_cli("fit-swatch", "card.dng", "--layout", "card.json", "-o", "rose.json")
     assert r.returncode == 2 and "card.dng: cannot read as a raw photo" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "rose.json").exists()
+
+
+def test_checker_in_the_photo_calibrates_it(run_cli, tmp_path):
+    # A ColorChecker beside a generated swatch card, seen by the card's camera (exposure, white balance, sRGB):
+    # --checker finds it and reads the photo through a camera model fitted to its 24 patches.
+    card = make_swatch_card(pigments.load("Quinacridone Rose"), coats=(1, 2), patch=40, seed=3)
+    H, W, _ = card.photo.shape
+    s, g = 50, 10
+    gains = card.effects.exposure * np.asarray(card.effects.white_balance)
+    photo = np.ones((max(H, 4 * (s + g) + 60), W + 6 * (s + g) + 60, 3)) * card.photo[2, 2]
+    photo[:H, :W] = card.photo
+    x0, y0 = W + 30, 30
+    photo[y0 - g : y0 + 4 * (s + g), x0 - g : x0 + 6 * (s + g)] = colorimetry.to_display(0.02 * gains)
+    for i, lab in enumerate(checker_references()):
+        r, c = divmod(i, 6)
+        y, x = y0 + r * (s + g), x0 + c * (s + g)
+        photo[y : y + s, x : x + s] = colorimetry.to_display(np.clip(lab_to_linear(lab) * gains, 0, 1))
+    write_png(tmp_path / "card.png", photo, bits=16)
+    (tmp_path / "card.json").write_text(json.dumps(card.layout))
+    r = run_cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "rose.json", "--checker")
+    assert r.returncode == 0, r.stderr
+    assert "calibrated from 24 references of known colour" in r.stdout
+    cam = json.loads((tmp_path / "rose.json").read_text())["fit"]["calibration"][0]["camera"]
+    assert cam["references"] == 24 and cam["leave_one_out_mean_delta_e_2000"] < 1.5

@@ -329,21 +329,33 @@ def find_checker(display: np.ndarray, file: Any = None) -> tuple[np.ndarray, np.
                             file=file, field="--checker")  # fmt: skip
     data = found[0]
     colours = np.asarray(data.swatch_colours, np.float64)
-    centres = _checker_centres(data, img.shape)
+    centres = _checker_centres(data, np.asarray(display, np.float64))
     return colours, centres, checker_references()
 
 
-def _checker_centres(data: Any, shape: tuple[int, ...]) -> np.ndarray:
+def _checker_centres(data: Any, display: np.ndarray) -> np.ndarray:
     """The 24 patches' centres (x, y) in the photo's pixels, from the checker's quadrilateral.
 
-    The detector works on the photo resized to its working width (1440 pixels); the patches lie on a 6 x 4
-    grid inside the quadrilateral (interpolated bilinearly between its corners: the centres set only where
-    the light falloff is read, which varies slowly).
+    The detector works on the photo resized to its working width (1440 pixels) and may have read the chart
+    turned or mirrored; the patches lie on a 6 x 4 grid inside the quadrilateral (interpolated bilinearly
+    between its corners), and of the 8 ways to lay the grid on it the one whose pixels match the detected
+    colours best is taken. The centres set only where the light falloff is read, which varies slowly.
     """
-    q = np.asarray(data.quadrilateral, np.float64).reshape(4, 2) * (shape[1] / 1440.0)
+    H, W = display.shape[:2]
+    q = np.asarray(data.quadrilateral, np.float64).reshape(4, 2) * (W / 1440.0)
+    colours = np.asarray(data.swatch_colours, np.float64)
     u = (np.arange(6) + 0.5) / 6
     v = (np.arange(4) + 0.5) / 4
     vv, uu = np.meshgrid(v, u, indexing="ij")
     uu, vv = uu.ravel()[:, None], vv.ravel()[:, None]
-    c = (1 - uu) * (1 - vv) * q[0] + uu * (1 - vv) * q[1] + uu * vv * q[2] + (1 - uu) * vv * q[3]
-    return np.clip(c, 0, [shape[1] - 1, shape[0] - 1])
+    best, out = np.inf, None
+    for k in range(4):
+        for order in (np.roll(np.arange(4), -k), np.roll(np.arange(4)[::-1], -k)):
+            c0, c1, c2, c3 = q[order]
+            c = (1 - uu) * (1 - vv) * c0 + uu * (1 - vv) * c1 + uu * vv * c2 + (1 - uu) * vv * c3
+            c = np.clip(c, 0, [W - 1, H - 1])
+            seen = display[c[:, 1].astype(int), c[:, 0].astype(int)]
+            err = float(np.sum((seen - colours) ** 2))
+            if err < best:
+                best, out = err, c
+    return out

@@ -33,6 +33,7 @@ from diffwash.fit._swatch import _measure
 
 PATCH, GAP, COLS = 64, 24, 8
 BOARD = 0.12  # the board's reflectance (dark grey, not black)
+TEXTURE = 0.03  # the board's relative texture (standard deviation)
 
 #: Cameras: (name, tone curve parameters (contrast, lift, gamma), crosstalk matrix, white-balance error).
 CAMERAS = [
@@ -77,7 +78,7 @@ def card(labs: np.ndarray) -> tuple[np.ndarray, dict, list]:
     rows = -(-n // COLS)
     H, W = GAP + rows * (PATCH + GAP) + 80, GAP + COLS * (PATCH + GAP)
     rng = np.random.default_rng(1)
-    img = BOARD * (1 + 0.03 * rng.standard_normal((H, W, 1))) * np.ones((1, 1, 3))
+    img = BOARD * (1 + TEXTURE * rng.standard_normal((H, W, 1))) * np.ones((1, 1, 3))
     boxes = []
     lin = np.clip(lab_to_linear(labs), 0, 1)
     white = np.array([0.86, 0.86, 0.85])
@@ -118,7 +119,21 @@ def plain_scaling(photo: Path, layout: dict) -> np.ndarray:
     return np.array([mean(p["box"]) / gain for p in layout["patches"]])
 
 
+#: Boards: (name, reflectance, relative texture). The issue's photo had "the bare board -- not black, a dark-ish
+#: board -- as black".
+BOARDS = [("dark smooth board", 0.12, 0.03), ("mid-grey textured board", 0.25, 0.15)]
+
+
 def run() -> list[dict]:
+    global BOARD, TEXTURE
+    out = []
+    for board in BOARDS:
+        _, BOARD, TEXTURE = board
+        out += run_board(board[0])
+    return out
+
+
+def run_board(board: str) -> list[dict]:
     names, labs = patches()
     img, layout, boxes = card(labs)
     checker = np.arange(24)
@@ -135,7 +150,7 @@ def run() -> list[dict]:
             lay_b = dict(layout, references=[{"box": boxes[i], "lab": labs[i].tolist()} for i in refs])
             m = _measure(photo, lay_b)
             b = np.array([s.rgb for s in m.patches])
-            row = {"camera": cam[0], "a_every_patch": float(np.mean(de(a, labs))),
+            row = {"board": board, "camera": cam[0], "a_every_patch": float(np.mean(de(a, labs))),
                    "a_plain_scaling": float(np.mean(de(base, labs))),
                    "b_other_16": float(np.mean(de(b[held], labs[held]))),
                    "b_paints": float(np.mean(de(b[24:], labs[24:]))),

@@ -52,6 +52,7 @@ __all__ = ["CameraModel", "fit_camera", "CORRECTIONS", "needed_references", "lab
 #: Colour corrections: name -> (colour-science's expansion, fewest references for a leave-one-out score).
 CORRECTIONS = ("Cheung 2004 (3 terms)", "Cheung 2004 (4 terms)", "Finlayson 2015 (root-polynomial, degree 2)",
                "Vandermonde (degree 2)")  # fmt: skip
+_CURVE_NAMES = {"srgb": "sRGB curve", "linear": "linear (raw)", "fitted": "fitted tone curve"}
 _DEGREE = 5
 _SOFT = 0.02  # the floor of the relative weights (a channel's value below it weighs as at it)
 
@@ -99,9 +100,10 @@ class ToneCurve:
         return (self(np.minimum(e + h, 1)) - self(np.maximum(e - h, 0))) / (np.minimum(e + h, 1) - np.maximum(e - h, 0))
 
 
-def needed_references(raw: bool = False) -> int:
-    """The fewest references a camera model needs: a 3x3 matrix on a fixed curve, scored leave-one-out."""
-    return 4
+def needed_references() -> int:
+    """The fewest references a camera model needs: a 3x3 matrix on a fixed curve (sRGB, or linear for a raw
+    photo), scored by leave-one-out."""
+    return _needs("srgb", CORRECTIONS[0])
 
 
 def _needs(curve: str, correction: str) -> int:
@@ -207,8 +209,8 @@ class CameraModel:
 
     @property
     def name(self) -> str:
-        return f"{ {'srgb': 'sRGB curve', 'linear': 'linear (raw)', 'fitted': 'fitted tone curve'}[self.curve.kind]}" \
-               f" + {self.correction}"  # fmt: skip
+        """The curve and the correction, in words (as `scores` names them)."""
+        return f"{_CURVE_NAMES[self.curve.kind]} + {self.correction}"
 
     def gain(self) -> np.ndarray:
         """The model's gain per channel near neutral (reflectance per unit of signal), (3,)."""
@@ -266,7 +268,7 @@ def fit_camera(encoded: Any, light: Any, lab: Any, *, raw: bool = False) -> Came
             M = _solve_matrix(_expand(curve(e[keep]) / light[keep, None], corr), target[keep])
             pred[i] = _expand(curve(e[i : i + 1]) / light[i], corr) @ M
         de = _de(pred, lab)
-        key = f"{ {'srgb': 'sRGB curve', 'linear': 'linear (raw)', 'fitted': 'fitted tone curve'}[kind]} + {corr}"
+        key = f"{_CURVE_NAMES[kind]} + {corr}"
         scores[key] = float(np.mean(de)) if np.all(np.isfinite(de)) else float("inf")
         loo[(kind, corr)] = (scores[key], de)
     (kind, corr), (best, de) = min(loo.items(), key=lambda kv: kv[1][0])

@@ -782,7 +782,7 @@ def calibrate_references(display: np.ndarray, bits: int, layout: Layout, cal: Ca
     Fewer references than `needed_references()` raise a `DiffwashError` naming `references`.
     """
     n = len(layout.references) + (0 if extra is None else len(extra[0]))
-    need = needed_references(raw)
+    need = needed_references()
     if n < need:
         raise _fail(f"{n} reference{'s' if n != 1 else ''} of known colour, but the camera model needs at least "
                     f"{need} (a 3x3 colour matrix scored by leave-one-out)", file, "references")  # fmt: skip

@@ -4,10 +4,12 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from diffwash import DiffwashError, colorimetry
 from diffwash._io import write_png
-from diffwash.fit._camera import checker_references, fit_camera, lab_to_linear
+from diffwash.fit._camera import _fit_curve, checker_references, fit_camera, lab_to_linear
 from diffwash.fit._photo import parse_layout
 from diffwash.swatchcard import make_swatch_card
 from diffwash import pigments
@@ -171,3 +173,17 @@ def test_checker_in_the_photo_calibrates_it(run_cli, tmp_path):
     assert "calibrated from 24 references of known colour" in r.stdout
     cam = json.loads((tmp_path / "rose.json").read_text())["fit"]["calibration"][0]["camera"]
     assert cam["references"] == 24 and cam["leave_one_out_mean_delta_e_2000"] < 1.5
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(6, 12))
+def test_fitted_tone_curve_is_monotone_whatever_the_references(seed, n):
+    # The curve's Bernstein coefficients are non-decreasing by construction, so the curve is monotone: an encoded
+    # value never reads darker than a smaller one, even from noisy or contradictory references.
+    rng = np.random.default_rng(seed)
+    lab = np.column_stack([rng.uniform(5, 95, n), rng.uniform(-60, 60, n), rng.uniform(-60, 60, n)])
+    enc = np.clip(rng.uniform(0, 1, (n, 3)), 0, 1)
+    curve, M = _fit_curve(enc, rng.uniform(0.7, 1.1, n), lab_to_linear(lab))
+    g = curve(np.linspace(0, 1, 201))
+    assert curve.kind == "fitted" and np.all(np.isfinite(g)) and np.all(np.diff(g) >= -1e-12)
+    assert np.all(np.isfinite(M))

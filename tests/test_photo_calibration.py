@@ -1,6 +1,7 @@
 """Photos calibrated from patches of known colour: the camera model, the layout's references, --checker, raw."""
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -9,7 +10,7 @@ from hypothesis import strategies as st
 
 from diffwash import DiffwashError, colorimetry
 from diffwash._io import write_png
-from diffwash.fit._camera import _fit_curve, checker_references, fit_camera, lab_to_linear
+from diffwash.fit._camera import _fit_curve, checker_references, find_checker, fit_camera, lab_to_linear, read_raw
 from diffwash.fit._photo import parse_layout
 from diffwash.swatchcard import make_swatch_card
 from diffwash import pigments
@@ -187,3 +188,12 @@ def test_fitted_tone_curve_is_monotone_whatever_the_references(seed, n):
     g = curve(np.linspace(0, 1, 201))
     assert curve.kind == "fitted" and np.all(np.isfinite(g)) and np.all(np.diff(g) >= -1e-12)
     assert np.all(np.isfinite(M))
+
+
+@pytest.mark.parametrize("module, call", [("rawpy", lambda: read_raw("card.dng")),
+                                          ("colour_checker_detection", lambda: find_checker(np.zeros((8, 8, 3))))])
+def test_missing_photo_extra_is_one_line_naming_it(monkeypatch, module, call):
+    monkeypatch.setitem(sys.modules, module, None)  # as if not installed
+    with pytest.raises(DiffwashError) as e:
+        call()
+    assert "pip install 'diffwash[photo]'" in str(e.value) and "\n" not in str(e.value)

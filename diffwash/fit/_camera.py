@@ -152,7 +152,6 @@ def _solve_matrix(F: np.ndarray, target: np.ndarray) -> np.ndarray:
 def _fit_curve(e: np.ndarray, light: np.ndarray, target: np.ndarray, iterations: int = 30
                ) -> tuple[ToneCurve, np.ndarray]:  # fmt: skip
     """A shared monotone curve and a 3x3 matrix by alternating least squares (module docstring)."""
-    curve = ToneCurve("srgb")
     # Start at the sRGB curve: Bernstein coefficients that reproduce it at the nodes.
     nodes = np.linspace(0, 1, 41)
     c0 = np.linalg.lstsq(_bernstein(nodes), colorimetry.from_display(nodes), rcond=None)[0]

@@ -50,11 +50,10 @@ import numpy as np
 
 from . import colorimetry, km, shading
 from ._errors import DiffwashError
-from ._render import SHADING_MODES
 from ._version import __version__
 from ._xp import Expr, glsl_session
 from .pigments import Pigment
-from .shading import CONSTANTS, Params
+from .shading import CONSTANTS, SHADING_MODES, Params
 
 if TYPE_CHECKING:  # annotations only: the LUT module sits beside this one, not below it
     from ._scene import Scene

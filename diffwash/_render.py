@@ -62,7 +62,6 @@ if TYPE_CHECKING:  # annotations only: scenes are built above this module (diffw
 __all__ = [
     "Visibility",
     "Surface",
-    "SHADING_MODES",
     "rasterize",
     "visibility",
     "render",
@@ -74,9 +73,6 @@ __all__ = [
     "surface_thicknesses",
     "clear_visibility_cache",
 ]
-
-#: Where the thicknesses are computed: at every pixel, or at the vertices and interpolated.
-SHADING_MODES = ("per-pixel", "per-vertex")
 
 _cache = LRU(4)
 #: The shadow maps' triangles (the light's depth pass) of concrete meshes and lights.

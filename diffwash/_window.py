@@ -22,10 +22,10 @@ from ._camera import Camera
 from ._errors import DiffwashError, FailureError
 from ._glsl import uniform_values
 from ._preview import Preview, has_display
-from ._render import SHADING_MODES
 from .look import _gl
 from .look._frame import LookFrame
 from .look._shadow import glsl_depth_pass, light_view_projection
+from .shading import SHADING_MODES
 
 __all__ = ["show"]
 

@@ -33,6 +33,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from . import km
 from ._errors import DiffwashError
+from ._choices import SHADING_MODES as SHADING_MODES  # the model's; declared in a leaf that --help can read
 from ._xp import namespace, shader_function
 from .pigments import Pigment, unlabelled
 from .spectral import Observation
@@ -54,6 +55,7 @@ __all__ = [
     "DEFAULT_CONSTANTS",
     "DEFAULT_PAPER",
     "GAIN_BIAS_EPS",
+    "SHADING_MODES",
 ]
 
 #: Model constants a scene may leave out, with their defaults.

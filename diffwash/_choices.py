@@ -1,0 +1,14 @@
+"""The model's named choices, as plain data that imports nothing.
+
+They are the model's own (`diffwash.shading` re-exports `SHADING_MODES`, and the renderer, the
+scene reader and the shader generator take it from there); they are declared in this leaf, below every
+module that imports JAX, so that the command line can offer them in `--help` without loading the
+numerical stack.
+"""
+
+from __future__ import annotations
+
+__all__ = ["SHADING_MODES"]
+
+#: Where the wash and unlit thicknesses are computed: at every pixel, or at the vertices and interpolated.
+SHADING_MODES = ("per-pixel", "per-vertex")

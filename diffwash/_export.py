@@ -33,19 +33,21 @@ import os
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from . import lut as _lut
 from ._errors import DiffwashError
 from ._gltf import png16, with_material
-from ._io import atomic_folder
-from ._look_export import LOOK_FOLDER, LookExport, look_export, retarget, write_look
 from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
+from ._io import atomic_folder
+from ._lazy import lazy
+from ._look_export import LOOK_FOLDER, LookExport, look_export, retarget, write_look
 from ._scene import Mesh, Scene, load_scene, scene_to_dict
 from ._threejs import write_threejs
 from ._version import __version__
 from ._viewer import viewer_html
 from .shading import Params
+
+trimesh = lazy("trimesh")
 
 __all__ = ["export", "mesh_glb", "material_glb", "EXPORT_FILES"]
 

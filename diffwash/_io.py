@@ -30,9 +30,13 @@ from typing import Any
 
 import numpy as np
 import png  # pypng: 16-bit RGB PNGs, which Pillow cannot write
-from PIL import Image, ImageOps, UnidentifiedImageError
 
 from ._errors import DiffwashError, FailureError
+from ._lazy import lazy
+
+# Pillow, imported when an image is first read or written through it.
+Image = lazy("PIL.Image")
+ImageOps = lazy("PIL.ImageOps")
 
 __all__ = [
     "read_json", "write_json", "write_text", "atomic_path", "atomic_paths", "atomic_folder", "read_image",
@@ -548,7 +552,7 @@ def _read_pillow(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
                 alpha = "A" in bands or "transparency" in im.info
                 target = ("LA" if alpha else "L") if grey else ("RGBA" if alpha else "RGB")
                 a = np.asarray(im.convert(target), np.float64) / 255.0
-    except (UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError, struct.error, IndexError,
+    except (Image.UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError, struct.error, IndexError,
             TypeError, KeyError, ZeroDivisionError, MemoryError) as e:  # fmt: skip
         raise DiffwashError(f"not a readable image: {e}".splitlines()[0], file=path) from None
     if a.ndim == 2:

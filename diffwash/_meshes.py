@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-import trimesh
+
+from ._lazy import lazy
+
+trimesh = lazy("trimesh")
 
 __all__ = ["torus_knot", "uv_sphere"]
 

@@ -30,24 +30,25 @@ from typing import Any
 
 import equinox as eqx
 import numpy as np
-import trimesh
 from jaxtyping import Float, Int
 
 from . import pigments as _pigments
 from ._camera import Camera
 from ._errors import DiffwashError
 from ._io import FLOAT32_MAX, check_float32, finite_number, read_json, write_json
+from ._lazy import lazy
 from ._mixture import Mixture, mixture
 from ._watercolour import Watercolour, parse_watercolour, watercolour_files, watercolour_to_dict
 from .library import Library, load_library
-from .shading import DEFAULT_CONSTANTS, DEFAULT_PAPER, Params
+from .shading import DEFAULT_CONSTANTS, DEFAULT_PAPER, SHADING_MODES, Params
 from .spectral import Observation
+
+trimesh = lazy("trimesh")
 
 __all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "referenced_files", "MAX_IMAGE_SIDE"]
 
 #: Largest image side the renderer accepts (pixels).
 MAX_IMAGE_SIDE = 8192
-SHADING_MODES = ("per-pixel", "per-vertex")
 BACKFACE_MODES = ("auto", "cull", "both")
 
 _TOP_KEYS = {

@@ -27,12 +27,14 @@ achromatic axis and identical colour pairs ("double where" forms).
 
 from __future__ import annotations
 
-import colour
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from ._lazy import lazy
 from ._xp import namespace, shader_function
+
+colour = lazy("colour")  # colour-science (seconds to import), when a file's colours are first encoded
 
 __all__ = [
     "srgb_encode",

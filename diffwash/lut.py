@@ -58,18 +58,20 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import OpenEXR
 import png
 from jaxtyping import Array, ArrayLike, Float
 
 from . import shading
 from ._errors import DiffwashError
 from ._io import atomic_path, read_json
+from ._lazy import lazy
 from ._mixture import Mixture
 from ._scene import Scene, load_scene
 from ._version import __version__
 from .colorimetry import from_display, to_display
 from .shading import DEFAULT_CONSTANTS, Params
+
+OpenEXR = lazy("OpenEXR")
 
 __all__ = [
     "Lut",

@@ -58,12 +58,14 @@ from typing import Any
 
 import equinox as eqx
 import jax.numpy as jnp
-import colour
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from . import colorimetry
 from ._errors import DiffwashError
+from ._lazy import lazy
+
+colour = lazy("colour")  # colour-science: its observers and illuminants, when a band grid is first observed
 
 __all__ = [
     "Observation",

@@ -49,15 +49,17 @@ from typing import Any
 
 import equinox as eqx
 import numpy as np
-from PIL import Image
-from scipy.ndimage import gaussian_filter
 
 from . import colorimetry, km, mixing, spectral
 from ._io import atomic_paths, image_format_for, refuse_overwriting_inputs, write_png
+from ._lazy import lazy
 from .library import Library
 from .measurements import format_stack, split_layers
 from .pigments import Pigment
 from .shading import DEFAULT_PAPER
+
+Image = lazy("PIL.Image")
+ndimage = lazy("scipy.ndimage")
 
 __all__ = ["CameraEffects", "SwatchCard", "make_swatch_card", "make_mixture_card", "save_swatch_card", "DEFAULT_INK",
            "IDEAL"]  # fmt: skip
@@ -132,7 +134,7 @@ class SwatchCard:
 
 def _smooth_noise(rng: np.random.Generator, shape: tuple[int, int], sigma: float) -> np.ndarray:
     """Zero-mean, unit-variance noise smoothed over about `sigma` pixels."""
-    n = gaussian_filter(rng.standard_normal(shape), sigma, mode="wrap")
+    n = ndimage.gaussian_filter(rng.standard_normal(shape), sigma, mode="wrap")
     return n / max(float(n.std()), 1e-12)
 
 
@@ -256,7 +258,7 @@ def _photograph(card: np.ndarray, effects: CameraEffects, rng: np.random.Generat
         sd = np.sqrt(effects.shot_noise**2 * np.maximum(signal, 0) + effects.read_noise**2)
         signal = signal + sd * rng.standard_normal(signal.shape)
     if effects.blur > 0:
-        signal = gaussian_filter(signal, (effects.blur, effects.blur, 0), mode="nearest")
+        signal = ndimage.gaussian_filter(signal, (effects.blur, effects.blur, 0), mode="nearest")
     return np.clip(np.asarray(colorimetry.srgb_encode(np.clip(signal, 0, 1)), np.float64), 0, 1)
 
 

@@ -12,12 +12,14 @@ from collections.abc import Sequence
 
 import jax.numpy as jnp
 import numpy as np
-from matplotlib.figure import Figure
 
 from . import colorimetry, km
 from ._io import save_figure
+from ._lazy import lazy
 from .pigments import Pigment
 from .shading import DEFAULT_PAPER
+
+mpl_figure = lazy("matplotlib.figure")
 
 __all__ = ["DEFAULT_COATS", "swatch_colours", "draw_chart", "save_chart"]
 
@@ -67,7 +69,7 @@ def draw_chart(
             img[y0 + cell + pad // 2 : y0 + 2 * cell + pad // 2, x0 : x0 + cell] = over_black[j]
     dpi = 100
     label_w = 170
-    fig = Figure(figsize=((width + label_w) / dpi, (height + 56) / dpi), dpi=dpi)  # not pyplot: no backend
+    fig = mpl_figure.Figure(figsize=((width + label_w) / dpi, (height + 56) / dpi), dpi=dpi)  # not pyplot: no backend
     ax = fig.add_axes([label_w / (width + label_w), 0, width / (width + label_w), height / (height + 56)])
     ax.imshow(img, interpolation="nearest", aspect="equal")
     ax.set_xticks([pad + j * (cell + pad) + cell / 2 for j in range(m)])

@@ -60,8 +60,11 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
-from PIL import Image
-from scipy.special import ndtr
+
+from .._lazy import lazy
+
+Image = lazy("PIL.Image")
+scipy_special = lazy("scipy.special")
 
 #: JFIF's YCbCr to RGB matrix (rows R, G, B; columns Y, Cb, Cr), ITU-T T.871, and its inverse.
 YCC_TO_RGB = np.array([[1.0, 0.0, 1.402], [1.0, -0.344136, -0.714136], [1.0, 1.772, 0.0]])
@@ -152,7 +155,7 @@ def censored_mean(m: np.ndarray, sigma: np.ndarray) -> np.ndarray:
 
     def expect(mu):
         z = mu / safe
-        return mu * ndtr(z) + safe * np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
+        return mu * scipy_special.ndtr(z) + safe * np.exp(-0.5 * z * z) / math.sqrt(2 * math.pi)
 
     lo = m - 6 * safe
     hi = m.copy()  # expect(mu) >= mu, so mu <= m

@@ -45,9 +45,11 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.stats import t as student_t
 
+from .._lazy import lazy
 from ._kmfit import COMPILER_OPTIONS, FitModel, Rows, _compiled, effective, pad_rows, predict
+
+scipy_stats = lazy("scipy.stats")
 
 __all__ = ["Observations", "NoiseFit", "fit_noise", "Uncertainty", "uncertainty", "PARAMETERS"]
 
@@ -109,7 +111,7 @@ class NoiseFit:
     def quantile(self, level: float, two_sided: bool = True) -> float:
         """Student's t quantile for an interval of `level` with this fit's degrees of freedom."""
         p = 0.5 + level / 2 if two_sided else level
-        return float(student_t.ppf(p, max(self.dof, 1)))
+        return float(scipy_stats.t.ppf(p, max(self.dof, 1)))
 
 
 def _whiten(obs: Observations, tau: float) -> np.ndarray:
@@ -291,7 +293,7 @@ class Uncertainty:
     def quantile(self, level: float, two_sided: bool = True) -> float:
         """Student's t quantile for an interval of `level` with this fit's degrees of freedom."""
         p = 0.5 + level / 2 if two_sided else level
-        return float(student_t.ppf(p, max(self.dof, 1)))
+        return float(scipy_stats.t.ppf(p, max(self.dof, 1)))
 
     @property
     def log_sd(self) -> np.ndarray:

@@ -9,11 +9,12 @@ retyped.
 
 from __future__ import annotations
 
-
-import moderngl
 import numpy as np
 
+from .._lazy import lazy
 from .._xp import float_literal
+
+moderngl = lazy("moderngl")
 
 __all__ = ["float_literal", "vec_literal", "FULLSCREEN_VERTEX", "HEADERS", "header"]
 

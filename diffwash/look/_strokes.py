@@ -40,9 +40,12 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
-import trimesh
 from jaxtyping import Array, ArrayLike, Float
-from scipy.spatial import cKDTree
+
+from .._lazy import lazy
+
+spatial = lazy("scipy.spatial")
+trimesh = lazy("trimesh")
 
 __all__ = [
     "principal_directions",
@@ -196,7 +199,7 @@ def stroke_field(
     field = d_min if direction == "min" else d_max
     if width is None:
         width = 2.0 * mean_edge_length(p, faces)
-    tree = cKDTree(p)
+    tree = spatial.cKDTree(p)
     h = length / (2 * steps)
     window = np.cos(np.pi * np.arange(1, steps + 1) / (steps + 1)) * 0.5 + 0.5  # Hann, centre weight 1
     acc = solid_noise(p, width, seed)

@@ -41,10 +41,12 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
-from scipy.spatial import cKDTree
 
 from .._errors import DiffwashError
 from .._io import read_image
+from .._lazy import lazy
+
+spatial = lazy("scipy.spatial")
 
 __all__ = [
     "CHANNELS",
@@ -124,7 +126,7 @@ def _tooth(shape: tuple[int, int], cell: float, rng: np.random.Generator) -> np.
     n = len(points)
     radius = cell * rng.uniform(0.55, 1.0, n)
     height = rng.uniform(0.6, 1.0, n)
-    tree = cKDTree(points, boxsize=np.array([rows, cols], float))
+    tree = spatial.cKDTree(points, boxsize=np.array([rows, cols], float))
     r, c = np.meshgrid(np.arange(rows) + 0.5, np.arange(cols) + 0.5, indexing="ij")
     dist, idx = tree.query(np.stack([r.ravel(), c.ravel()], axis=1) % np.array([rows, cols]), k=3)
     domes = height[idx] * np.clip(1 - (dist / radius[idx]) ** 2, 0, None) ** 0.75

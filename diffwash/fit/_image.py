@@ -89,7 +89,7 @@ from .._watercolour import LOOK_FRACTIONS, LOOK_PARAMETERS, look_parameter_check
 from ..pigments import Pigment
 from ..shading import Params
 
-__all__ = ["FITTABLE", "SOLVERS", "ImageFit", "fit_image", "parse_fit_list", "load_cameras"]
+__all__ = ["FITTABLE", "SOLVERS", "IMAGE_LOSSES", "ImageFit", "fit_image", "parse_fit_list", "load_cameras"]
 
 #: Fittable parameters: name -> (kind, size). Kinds: log (> 0), logit (in (0, 1)), sphere (a direction),
 #: simplex (proportions summing to 1; size 0: one fewer than the glaze's mixture has pigments).
@@ -117,7 +117,7 @@ FITTABLE: dict[str, tuple[str, int]] = {
 }
 #: Solvers by name: least-squares solvers work on the residuals, minimisers on half their sum of squares.
 SOLVERS = ("lm", "gauss-newton", "dogleg", "bfgs")
-LOSSES = ("linear", "lab")
+IMAGE_LOSSES = ("linear", "lab")
 #: Starting proportions of a fitted mixture are raised to this (then renormalised): a log-ratio at 0 is infinite.
 MIN_PROPORTION = 1e-3
 
@@ -573,8 +573,8 @@ def fit_image(
     """
     t_start = time.perf_counter()
     names = parse_fit_list(fit)
-    if loss not in LOSSES:
-        raise DiffwashError(f"unknown loss {loss!r} (choose from {', '.join(LOSSES)})", field="--loss")
+    if loss not in IMAGE_LOSSES:
+        raise DiffwashError(f"unknown loss {loss!r} (choose from {', '.join(IMAGE_LOSSES)})", field="--loss")
     if solver not in SOLVERS:
         raise DiffwashError(f"unknown solver {solver!r} (choose from {', '.join(SOLVERS)})", field="--solver")
     target_list = list(targets) if isinstance(targets, (list, tuple)) else [targets]

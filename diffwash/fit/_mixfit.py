@@ -50,7 +50,7 @@ from ..measurements import Measurements
 from . import _pairs, _seen
 from ._bandlsq import BandLevenbergMarquardt
 
-__all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score", "residuals", "RGB_GRID"]
+__all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score_library", "residuals", "RGB_GRID"]
 
 #: The grid of the spectral pigments an RGB table is fitted with (nm).
 RGB_GRID = tuple(float(w) for w in range(380, 781, 10))
@@ -490,7 +490,7 @@ def pair_folds(m: Measurements, folds: int = 4, seed: int = 0) -> list[tuple[np.
     return out
 
 
-def score(lib: Library, m: Measurements) -> dict[str, float]:
+def score_library(lib: Library, m: Measurements) -> dict[str, float]:
     """Share of rows within CIE dE*ab 5 and mean CIEDE2000 of a library's predictions of a table's rows."""
     de, de_ab = residuals(lib, m)
     return {"rows": len(m), "share_de_ab_5": float(np.mean(de_ab <= 5)), "mean_de2000": float(np.mean(de))}

@@ -9,6 +9,7 @@ host values: they are keyed by their bytes (no device transfer is involved).
 from __future__ import annotations
 
 import collections
+import os
 import zlib
 from collections.abc import Callable, Hashable
 from typing import Any
@@ -16,7 +17,25 @@ from typing import Any
 import jax
 import numpy as np
 
-__all__ = ["leaf_key", "tree_key", "LRU"]
+__all__ = ["leaf_key", "tree_key", "LRU", "enable_compilation_cache"]
+
+
+def enable_compilation_cache() -> None:
+    """Keep JAX's compiled programs on disk so that later runs start fast (what every `diffwash` command does).
+
+    The folder is `$DIFFWASH_CACHE_DIR` or `~/.cache/diffwash/jax`; `DIFFWASH_CACHE_DIR=off` turns the
+    cache off. A folder that cannot be made leaves JAX as it is.
+    """
+    folder = os.environ.get("DIFFWASH_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "diffwash", "jax"))
+    if folder.lower() in ("", "off", "0", "none"):
+        return
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError:
+        return
+    jax.config.update("jax_compilation_cache_dir", folder)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 def leaf_key(x: Any) -> Hashable:

@@ -26,3 +26,4 @@ from ._io import to_uint as to_uint
 from ._io import write_image as write_image
 from ._io import write_json as write_json
 from ._io import write_png as write_png
+from ._pigment_files import read_pigments as read_pigments

@@ -23,22 +23,20 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import os
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import equinox as eqx
 import jax
-import numpy as np
 from jaxtyping import ArrayLike, Float
 
+from . import _pigment_files
 from ._errors import DiffwashError
-from ._io import check_float32, finite_number, read_json, write_json
+from ._io import write_json
+from ._pigment_files import DEFAULTS as DEFAULTS
+from ._pigment_files import key as _key
 
 __all__ = ["Pigment", "unlabelled", "load", "library", "names", "parse", "save", "DEFAULTS"]
-
-#: Values of the optional keys when a pigment file leaves them out.
-DEFAULTS = {"density": 0.05, "staining": 1.0, "granularity": 0.5}
 
 
 class Pigment(eqx.Module):
@@ -63,14 +61,7 @@ class Pigment(eqx.Module):
 
     def to_dict(self) -> dict[str, Any]:
         """The pigment as a JSON-ready dict in the library schema."""
-        return {
-            "name": self.name,
-            "K": [float(v) for v in np.asarray(self.K)],
-            "S": [float(v) for v in np.asarray(self.S)],
-            "density": float(self.density),
-            "staining": float(self.staining),
-            "granularity": float(self.granularity),
-        }
+        return _pigment_files.to_dict(self)
 
 
 def unlabelled(tree: Any) -> Any:
@@ -82,79 +73,21 @@ def unlabelled(tree: Any) -> Any:
     return jax.tree.map(strip, tree, is_leaf=lambda x: isinstance(x, Pigment))
 
 
-def _default_library_path() -> Path:
-    return Path(str(resources.files("diffwash") / "data" / "pigments" / "seed.json"))
-
-
-def _key(name: str) -> str:
-    return " ".join(name.casefold().split())
-
-
-def _rgb(value: Any, file: Any, field: str) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != 3:
-        got = f"{len(value)} values" if isinstance(value, list) else type(value).__name__
-        raise DiffwashError(f"must be a list of 3 numbers (red, green, blue), got {got}", file=file, field=field)
-    for v in value:
-        if not finite_number(v):
-            raise DiffwashError(f"must be finite numbers, got {v!r}", file=file, field=field)
-        check_float32(v, file=file, field=field)
-        if v < 0:
-            raise DiffwashError(f"must be >= 0, got {v!r}", file=file, field=field)
-    return np.asarray(value, np.float64)
-
-
 def parse(obj: Any, *, file: str | os.PathLike | None = None, where: str = "") -> Pigment:
     """Validate one pigment object (a dict from JSON) and make a `Pigment`.
 
     Errors name `file` and the field, e.g. `lib.json: pigments[2].K: must be >= 0`.
     """
-    ctx = f"{where}." if where else ""
-    if not isinstance(obj, dict):
-        raise DiffwashError(f"a pigment must be a JSON object, got {type(obj).__name__}", file=file, field=where or None)
-    for key in ("name", "K", "S"):
-        if key not in obj:
-            raise DiffwashError("missing key", file=file, field=ctx + key)
-    name = obj["name"]
-    if not isinstance(name, str) or not name.strip():
-        raise DiffwashError("must be a non-empty string", file=file, field=ctx + "name")
-    K = _rgb(obj["K"], file, ctx + "K")
-    S = _rgb(obj["S"], file, ctx + "S")
-    extra = {}
-    for key, default in DEFAULTS.items():
-        v = obj.get(key, default)
-        if not finite_number(v) or v < 0:
-            raise DiffwashError(f"must be a finite number >= 0, got {v!r}", file=file, field=ctx + key)
-        extra[key] = check_float32(v, file=file, field=ctx + key)
-    return Pigment(K=K, S=S, name=name.strip(), **extra)
+    return Pigment(**_pigment_files.parse_record(obj, file=file, where=where))
 
 
 def _read_file(path: str | os.PathLike) -> list[Pigment]:
-    data = read_json(path)
-    if isinstance(data, dict) and "pigments" in data:
-        items = data["pigments"]
-        if not isinstance(items, list) or not items:
-            raise DiffwashError("must be a non-empty list of pigments", file=path, field="pigments")
-        pigments = [parse(p, file=path, where=f"pigments[{i}]") for i, p in enumerate(items)]
-        _refuse_colliding_names(pigments, path)
-        return pigments
-    return [parse(data, file=path)]
-
-
-def _refuse_colliding_names(pigments: list[Pigment], path: Any) -> None:
-    """Two pigments whose names match as `load` matches names (ignoring case and runs of spaces) are refused:
-    a name would pick one of them silently."""
-    seen: dict[str, int] = {}
-    for i, p in enumerate(pigments):
-        j = seen.setdefault(_key(p.name), i)
-        if j != i:
-            raise DiffwashError(f"{p.name!r} and pigments[{j}].name {pigments[j].name!r} name the same pigment "
-                                "(names are matched ignoring case and spaces)", file=path,
-                                field=f"pigments[{i}].name")  # fmt: skip
+    return [Pigment(**r) for r in _pigment_files.read_records(path)]
 
 
 def library(path: str | os.PathLike | None = None) -> dict[str, Pigment]:
     """All pigments of a pigment file (default: the seed's 12), by name, in file order."""
-    pigments = _read_file(path if path is not None else _default_library_path())
+    pigments = _read_file(path if path is not None else _pigment_files.default_library_path())
     return {p.name: p for p in pigments}
 
 

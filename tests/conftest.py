@@ -22,7 +22,7 @@ import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
-from diffwash.cli import enable_compilation_cache  # noqa: E402
+from diffwash import enable_compilation_cache  # noqa: E402
 
 enable_compilation_cache()
 

@@ -1,12 +1,18 @@
 """The `diffwash` command: a thin layer over the Python API.
 
-Each subcommand lives in its own module here with `NAME`, `HELP`,
-`add_arguments(parser)` and `run(args) -> int`; every one calls a public
-function of the library. Errors caused by the user's input print one line
+Each subcommand lives in its own module here with `add_arguments(parser)`
+and `run(args) -> int` (`COMMANDS` names it, with its one-line help); every
+one calls a public function of the library. Errors caused by the user's input print one line
 (`diffwash: error: FILE: FIELD: problem`) and exit with status 2; work that
 fails (a fit that does not converge, a full disk) exits with 1, also with one
 line and no traceback. Outputs are written to a temporary name and renamed,
 so a failure leaves nothing half-written.
+
+The command line starts at once: `diffwash --version` and `--help` import no subcommand, and a
+subcommand's module is imported, and its arguments added, only when it is chosen. Those modules import
+only what their parsers need (light: no JAX); the library's functions are reached as `diffwash.NAME`
+when the command runs, and `diffwash` loads each on first use. JAX is imported, and its compilation
+cache set up (`diffwash.enable_compilation_cache`), only when a command that uses it runs.
 """
 
 from __future__ import annotations
@@ -15,42 +21,48 @@ import argparse
 import importlib
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
-import jax
+import diffwash
 
 from .. import DiffwashError, __version__
-from .. import io as dio
 
 __all__ = ["main", "COMMANDS", "add_image_limit", "check_output"]
 
-#: Subcommand modules, in the order `diffwash --help` lists them.
-COMMANDS = (
-    "pigments", "swatches", "render", "bake", "export", "preview", "swatch_card", "fit_swatch", "fit_image", "predict", "demo",
-)  # fmt: skip
-
-
-def enable_compilation_cache() -> None:
-    """Keep JAX's compiled programs on disk so that later runs start fast.
-
-    The folder is `$DIFFWASH_CACHE_DIR` or `~/.cache/diffwash/jax`;
-    `DIFFWASH_CACHE_DIR=off` turns the cache off.
-    """
-    folder = os.environ.get("DIFFWASH_CACHE_DIR", os.path.join(os.path.expanduser("~"), ".cache", "diffwash", "jax"))
-    if folder.lower() in ("", "off", "0", "none"):
-        return
-    try:
-        os.makedirs(folder, exist_ok=True)
-    except OSError:
-        return
-    jax.config.update("jax_compilation_cache_dir", folder)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+#: The subcommands, in the order `diffwash --help` lists them, with their one-line help. The module of
+#: `fit-swatch` is `diffwash.cli.fit_swatch`; it is imported only when its command is chosen.
+COMMANDS = {
+    "pigments": "list the pigment library",
+    "swatches": "draw a swatch chart of pigments over paper and over black",
+    "render": "render a scene file as a watercolour PNG",
+    "bake": "bake the glaze colour over (wash, unlit) thickness into a LUT texture",
+    "export": "export the LUT, GLSL/WebGL2 shaders, the mesh (GLB) and a WebGL2 viewer",
+    "preview": "render through the exported shaders and LUT with OpenGL (headless or in a window)",
+    "swatch-card": "make a synthetic swatch-card photo and its layout (for fit-swatch)",
+    "fit-swatch": "fit pigment K and S to a swatch-card photo or a table of measured colours",
+    "fit-image": "fit scene parameters to target images",
+    "predict": "predict the colour of single paints and mixtures from a pigment library (fit-swatch --table)",
+    "demo": "run the whole product on bundled data",
+}
 
 
 class _Parser(argparse.ArgumentParser):
-    """An argument parser whose usage errors are one line (exit status 2)."""
+    """An argument parser whose usage errors are one line (exit status 2).
+
+    `add_arguments(parser)`, if given, adds its arguments when it first parses: a subcommand's parser is
+    filled in only when that subcommand is chosen.
+    """
+
+    def __init__(self, *args, add_arguments: Callable[[argparse.ArgumentParser], None] | None = None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._add_arguments = add_arguments
+
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
+        if self._add_arguments is not None:
+            add, self._add_arguments = self._add_arguments, None
+            add(self)
+        return super().parse_known_args(args, namespace)
 
     def error(self, message: str):  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
@@ -68,6 +80,7 @@ def check_output(path: str, suffix: str, flag: str) -> Path:
 
 def add_image_limit(p: argparse.ArgumentParser) -> None:
     """The `--max-image-pixels` option of the commands that read photos or target images."""
+    dio = diffwash.io
     p.add_argument("--max-image-pixels", metavar="N", default=None,
                    help=f"read images of up to N pixels (default: ${dio.PIXELS_ENV}, else {dio.MAX_IMAGE_PIXELS:,}); larger "
                         f"ones are refused from their header, before decoding")  # fmt: skip
@@ -81,12 +94,21 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"diffwash {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in COMMANDS:
-        module = importlib.import_module(f".{name}", __name__)
-        p = sub.add_parser(module.NAME, help=module.HELP, description=module.__doc__)
+    for name, summary in COMMANDS.items():
+        sub.add_parser(name, help=summary, add_arguments=_command_arguments(name))
+    return parser
+
+
+def _command_arguments(name: str) -> Callable[[argparse.ArgumentParser], None]:
+    """What fills in the parser of command `name` once it is chosen: its module's description and arguments."""
+
+    def add(p: argparse.ArgumentParser) -> None:
+        module = importlib.import_module(f".{name.replace('-', '_')}", __name__)
+        p.description = module.__doc__
         module.add_arguments(p)
         p.set_defaults(_run=module.run, _uses_jax=getattr(module, "USES_JAX", True))
-    return parser
+
+    return add
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -107,8 +129,8 @@ def _main(argv: Sequence[str] | None) -> int:
     args = parser.parse_args(argv)
     try:
         if args._uses_jax:
-            enable_compilation_cache()
-        with dio.image_pixel_limit(getattr(args, "max_image_pixels", None), "--max-image-pixels"):
+            diffwash.enable_compilation_cache()
+        with diffwash.io.image_pixel_limit(getattr(args, "max_image_pixels", None), "--max-image-pixels"):
             return int(args._run(args) or 0)
     except DiffwashError as e:
         print(f"diffwash: error: {e}", file=sys.stderr)

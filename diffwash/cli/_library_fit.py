@@ -12,9 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import DiffwashError, FailureError, measurements
+import diffwash
+
+from .. import DiffwashError, FailureError
 from .. import io as dio
-from ..fit import MixModel, fit_mixtures, save_mixture_report
 
 
 def _needs_library(table: str) -> bool:
@@ -32,15 +33,15 @@ def _needs_library(table: str) -> bool:
         return False  # the table's own reader says what is wrong with it
 
 
-def wants_library(table: str, linear: bool) -> measurements.Measurements | None:
+def wants_library(table: str, linear: bool) -> diffwash.measurements.Measurements | None:
     """The table's measurements if it needs the joint mixture fit (spectral, or with mixtures), else None
     (single-pigment RGB tables keep `diffwash.fit.fit_table` and its reader's errors)."""
     if not _needs_library(table):
         return None
-    return measurements.read_measurements(table, linear=linear)
+    return diffwash.measurements.read_measurements(table, linear=linear)
 
 
-def run_library(args, m: measurements.Measurements, out: Path, report: Path | None) -> int:
+def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: Path | None) -> int:
     """Fit every pigment of `m` jointly and write the library to `out`."""
     t0 = time.perf_counter()
     for flag in ("plain", "thickness", "loss", "batch"):
@@ -52,9 +53,9 @@ def run_library(args, m: measurements.Measurements, out: Path, report: Path | No
     if args.pair_terms and not m.spectral:
         raise DiffwashError("applies to spectral tables (an RGB table is fitted without pair terms)",
                             field="--pair-terms")  # fmt: skip
-    model = MixModel(weights=args.mixing == "weights", surface=args.surface == "saunderson",
+    model = diffwash.fit.MixModel(weights=args.mixing == "weights", surface=args.surface == "saunderson",
                      loss="spectral" if args.refine == "none" else "de2000", pairs=args.pair_terms != "off")
-    fit = fit_mixtures(m, model=model, max_steps=args.max_steps)
+    fit = diffwash.fit.fit_mixtures(m, model=model, max_steps=args.max_steps)
     kind = f"{len(m.wavelengths)} bands" if m.spectral else "sRGB, fitted as smooth spectra"
     s = fit.summary()
     stacks = f"{int(np.sum(m.is_stack))} glaze stacks; " if np.any(m.is_stack) else ""
@@ -70,7 +71,7 @@ def run_library(args, m: measurements.Measurements, out: Path, report: Path | No
     with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         dio.write_json(out_tmp, fit.library.to_dict())
         if report is not None:
-            save_mixture_report(report_tmp, fit, m)
+            diffwash.fit.save_mixture_report(report_tmp, fit, m)
     print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0

@@ -10,11 +10,10 @@ from __future__ import annotations
 
 import sys
 
-from .. import DiffwashError, load_scene, lut, referenced_files
-from .. import io as dio
+import diffwash
 
-NAME = "bake"
-HELP = "bake the glaze colour over (wash, unlit) thickness into a LUT texture"
+from .. import DiffwashError
+from .. import io as dio
 
 
 def parse_lut_size(text: str, field: str = "--size"):
@@ -27,7 +26,7 @@ def parse_lut_size(text: str, field: str = "--size"):
     if len(values) not in (1, 2):
         raise DiffwashError(f"must be N or NxM, got {text!r}", field=field)
     try:
-        return lut.check_size(values[0] if len(values) == 1 else tuple(values), field=field)
+        return diffwash.lut.check_size(values[0] if len(values) == 1 else tuple(values), field=field)
     except DiffwashError as e:
         raise DiffwashError(e.problem, field=field) from None
 
@@ -36,7 +35,7 @@ def lut_outputs(path, fmt: str, kind: str) -> dict:
     """The files a LUT written to `path` occupies besides `path` itself (its sidecar, its R and T images),
     by what they are, for `refuse_overwriting_inputs`."""
     return {f"--output ({k}{'' if k == 'sidecar' else ' image'})": p
-            for k, p in lut.files(path, fmt, kind).items() if k not in ("colour", kind)}  # fmt: skip
+            for k, p in diffwash.lut.files(path, fmt, kind).items() if k not in ("colour", kind)}  # fmt: skip
 
 
 def add_arguments(p) -> None:
@@ -45,7 +44,7 @@ def add_arguments(p) -> None:
     p.add_argument("--size", default="256", metavar="N", help="samples per axis, 2..4096, or NxM (wash x unlit) (default: %(default)s)")
     p.add_argument(
         "--format",
-        choices=list(lut.FORMATS),
+        choices=list(diffwash.lut.FORMATS),
         default=None,
         help="png16 (16-bit sRGB, the default for .png), png8 (8-bit sRGB), exr (linear float), npy (linear float)",
     )
@@ -54,14 +53,14 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     size = parse_lut_size(args.size)
-    fmt = lut.format_for(args.output, args.format)
+    fmt = diffwash.lut.format_for(args.output, args.format)
     kind = "rt" if args.rt else "colour"
     dio.refuse_overwriting_inputs({"--output": args.output, **lut_outputs(args.output, fmt, kind)},
-                              [args.scene, *referenced_files(args.scene)])  # fmt: skip
-    scene = load_scene(args.scene)
+                              [args.scene, *diffwash.referenced_files(args.scene)])  # fmt: skip
+    scene = diffwash.load_scene(args.scene)
     large = size[0] * size[1] >= 2048 * 2048 and sys.stderr.isatty()
-    table = lut.bake(scene, size, kind=kind, progress=lut.print_progress if large else None)
-    written = lut.save(args.output, table, fmt)
+    table = diffwash.lut.bake(scene, size, kind=kind, progress=diffwash.lut.print_progress if large else None)
+    written = diffwash.lut.save(args.output, table, fmt)
     n, m = table.size
     print(f"wrote {', '.join(str(w) for w in written)} ({n}x{m} {table.kind} LUT, {fmt}; wash_max {table.wash_max:g}, unlit_max {table.unlit_max:g})")
     return 0

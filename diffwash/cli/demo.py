@@ -4,10 +4,7 @@ frame, and write a one-page report."""
 
 from __future__ import annotations
 
-from .. import demo
-
-NAME = "demo"
-HELP = "run the whole product on bundled data"
+import diffwash
 
 
 def add_arguments(p) -> None:
@@ -19,6 +16,6 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    res = demo.run(args.output, progress=not args.quiet, force=args.force)
-    demo.main_summary(res)
+    res = diffwash.demo.run(args.output, progress=not args.quiet, force=args.force)
+    diffwash.demo.main_summary(res)
     return 0

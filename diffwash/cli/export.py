@@ -12,29 +12,27 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import export, load_scene, lut, referenced_files, shaders
+import diffwash
+
 from .. import io as dio
 from .bake import parse_lut_size
-
-NAME = "export"
-HELP = "export the LUT, GLSL/WebGL2 shaders, the mesh (GLB) and a WebGL2 viewer"
 
 
 def add_arguments(p) -> None:
     p.add_argument("scene", metavar="SCENE.json", help="scene file (a fitted scene file works as it is)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (must not exist or be empty)")
-    p.add_argument("--target", choices=list(shaders.TARGETS), default="webgl2", help="shader language of the .vert/.frag files; threejs adds a three.js module and page (default: %(default)s)")
+    p.add_argument("--target", choices=list(diffwash.shaders.TARGETS), default="webgl2", help="shader language of the .vert/.frag files; threejs adds a three.js module and page (default: %(default)s)")
     p.add_argument("--size", default="256", metavar="N", help="LUT samples per axis, 2..4096, or NxM (default: %(default)s)")
-    p.add_argument("--format", choices=list(lut.FORMATS), default="png16", help="LUT file format (default: %(default)s)")
+    p.add_argument("--format", choices=list(diffwash.lut.FORMATS), default="png16", help="LUT file format (default: %(default)s)")
     p.add_argument("--rt", action="store_true", help="export the R/T LUT and shaders that composite over a paper uniform")
     p.add_argument("--overwrite", action="store_true", help="replace a previous export in DIR")
 
 
 def run(args) -> int:
     size = parse_lut_size(args.size)
-    dio.refuse_overwriting_inputs({"--output": args.output}, [args.scene, *referenced_files(args.scene)], folders=["--output"])
-    scene = load_scene(args.scene)
-    written = export(
+    dio.refuse_overwriting_inputs({"--output": args.output}, [args.scene, *diffwash.referenced_files(args.scene)], folders=["--output"])
+    scene = diffwash.load_scene(args.scene)
+    written = diffwash.export(
         scene, args.output, target=args.target, size=size, fmt=args.format, kind="rt" if args.rt else "colour", overwrite=args.overwrite
     )
     out = Path(args.output)

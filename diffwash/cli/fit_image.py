@@ -14,13 +14,12 @@ import time
 
 import numpy as np
 
-from .. import DiffwashError, FailureError, load_scene, referenced_files
+import diffwash
+
+from .. import DiffwashError, FailureError
 from .. import io as dio
-from ..fit import FITTABLE, IMAGE_LOSSES, SOLVERS, fit_image, load_cameras, parse_fit_list, save_image_report
 from . import add_image_limit, check_output
 
-NAME = "fit-image"
-HELP = "fit scene parameters to target images"
 USES_JAX = True
 
 
@@ -30,11 +29,11 @@ def add_arguments(p) -> None:
                    help="the scene (one for all targets, or one per target)")  # fmt: skip
     p.add_argument("--cameras", metavar="JSON", help="a list of cameras, one per target, for a single --scene")
     p.add_argument("--fit", required=True, metavar="LIST",
-                   help=f"comma-separated parameters to fit: {', '.join(FITTABLE)}")  # fmt: skip
+                   help=f"comma-separated parameters to fit: {', '.join(diffwash.fit.FITTABLE)}")  # fmt: skip
     p.add_argument("-o", "--output", required=True, metavar="JSON", help="the fitted scene file to write")
-    p.add_argument("--loss", choices=IMAGE_LOSSES, default="linear",
+    p.add_argument("--loss", choices=diffwash.fit.IMAGE_LOSSES, default="linear",
                    help="compare in linear RGB or CIELAB (default: %(default)s)")
-    p.add_argument("--solver", choices=SOLVERS, default="lm",
+    p.add_argument("--solver", choices=diffwash.fit.SOLVERS, default="lm",
                    help="optimistix solver (default: %(default)s, Levenberg-Marquardt)")
     p.add_argument("--max-steps", type=int, default=100, metavar="N",
                    help="solver steps at most (default: %(default)s)")
@@ -51,21 +50,21 @@ def run(args) -> int:
     report = check_output(args.report, ".png", "--report") if args.report else None
     if args.max_steps < 1:
         raise DiffwashError(f"must be at least 1, got {args.max_steps}", field="--max-steps")
-    scene_files = [f for s in args.scene for f in (s, *referenced_files(s))]
+    scene_files = [f for s in args.scene for f in (s, *diffwash.referenced_files(s))]
     dio.refuse_overwriting_inputs({"--output": out, "--report": report}, [*args.targets, *scene_files, args.cameras])
-    names = parse_fit_list(args.fit)
-    scenes = [load_scene(s) for s in args.scene]
+    names = diffwash.fit.parse_fit_list(args.fit)
+    scenes = [diffwash.load_scene(s) for s in args.scene]
     if args.cameras:
         if len(scenes) != 1:
             raise DiffwashError("--cameras goes with a single --scene", field="--cameras")
-        scenes = load_cameras(args.cameras, scenes[0])
+        scenes = diffwash.fit.load_cameras(args.cameras, scenes[0])
     if len(scenes) not in (1, len(args.targets)):
         raise DiffwashError(f"got {len(args.targets)} targets but {len(scenes)} scenes (one per target, or one)",
                             field="--scene")  # fmt: skip
     n_views = len(args.targets)
     print(f"fitting {', '.join(names)} to {n_views} view{'s' if n_views > 1 else ''} "
           f"({scenes[0].width}x{scenes[0].height}), loss {args.loss}, solver {args.solver}", flush=True)  # fmt: skip
-    fit = fit_image(args.targets, scenes, names, loss=args.loss, solver=args.solver, max_steps=args.max_steps,
+    fit = diffwash.fit.fit_image(args.targets, scenes, names, loss=args.loss, solver=args.solver, max_steps=args.max_steps,
                     progress=not args.quiet)  # fmt: skip
     for note in fit.notes:
         print(f"  {note}")
@@ -84,7 +83,7 @@ def run(args) -> int:
     with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         fit.save(out_tmp)
         if report is not None:
-            save_image_report(report_tmp, fit, args.targets, scenes)
+            diffwash.fit.save_image_report(report_tmp, fit, args.targets, scenes)
     print(f"wrote {out}")
     if report is not None:
         print(f"wrote {report}")

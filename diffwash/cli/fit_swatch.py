@@ -14,28 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import DiffwashError, FailureError, colorimetry
+import diffwash
+
+from .. import DiffwashError, FailureError
 from .. import io as dio
-from ..fit import (
-    CARD_PRIOR,
-    PLAIN,
-    SWATCH_MODEL,
-    FitModel,
-    MixModel,
-    fit_swatch_mixtures,
-    fit_swatches,
-    fit_table,
-    read_layout,
-    read_table,
-    save_mixture_report,
-    save_swatch_report,
-    save_table_report,
-    swatch_pigments,
-)
 from . import _library_fit, add_image_limit, check_output
 
-NAME = "fit-swatch"
-HELP = "fit pigment K and S to a swatch-card photo or a table of measured colours"
 USES_JAX = True
 
 
@@ -82,7 +66,7 @@ def add_arguments(p) -> None:
 
 
 def _srgb8(linear) -> str:
-    d = colorimetry.to_display(linear)
+    d = diffwash.colorimetry.to_display(linear)
     return "(" + ", ".join(f"{int(round(255 * c)):3d}" for c in d) + ")"
 
 
@@ -134,13 +118,13 @@ def _print_cameras(calibrations, photos) -> None:
 
 def _run_photos(args, out: Path, report: Path | None) -> int:
     t0 = time.perf_counter()
-    if len(swatch_pigments(args.layout, name=args.name, default=Path(args.photos[0]).stem)) > 1:
+    if len(diffwash.fit.swatch_pigments(args.layout, name=args.name, default=Path(args.photos[0]).stem)) > 1:
         return _run_mixture_photos(args, out, report, t0)
-    model = SWATCH_MODEL
-    if args.loss is not None and args.loss != SWATCH_MODEL.loss:
-        model = FitModel(thickness="linear", loss=args.loss)
-    fit = fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps,
-                       checker=args.checker)  # fmt: skip
+    model = diffwash.fit.SWATCH_MODEL
+    if args.loss is not None and args.loss != diffwash.fit.SWATCH_MODEL.loss:
+        model = diffwash.fit.FitModel(thickness="linear", loss=args.loss)
+    fit = diffwash.fit.fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps,
+                                    checker=args.checker)  # fmt: skip
     _print_cameras(fit.calibrations, args.photos)
     p = fit.pigment
     print(f"{p.name}: {len(fit.patches)} patches from {len(args.photos)} photo{'s' if len(args.photos) > 1 else ''}")
@@ -164,7 +148,7 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
         fit.save(out_tmp)
         if report is not None:
             photo, _ = dio.read_image(args.photos[0])
-            save_swatch_report(report_tmp, fit, photo, read_layout(args.layout[0]))
+            diffwash.fit.save_swatch_report(report_tmp, fit, photo, diffwash.fit.read_layout(args.layout[0]))
     _wrote(out, report)
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0
@@ -175,9 +159,9 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
     if args.loss is not None:
         raise DiffwashError("does not apply to cards of several pigments (fitted jointly in CIEDE2000: "
                             "docs/fitting.md)", field="--loss")  # fmt: skip
-    model = MixModel(weights=args.mixing == "weights", prior=CARD_PRIOR)
-    fit = fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps,
-                              checker=args.checker)  # fmt: skip
+    model = diffwash.fit.MixModel(weights=args.mixing == "weights", prior=diffwash.fit.CARD_PRIOR)
+    fit = diffwash.fit.fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model,
+                                           max_steps=args.max_steps, checker=args.checker)  # fmt: skip
     _print_cameras(fit.calibrations, args.photos)
     n = len(args.photos)
     mixtures = sum(len(set(q.pigments)) > 1 for q in fit.patches)
@@ -202,7 +186,7 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
     with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         fit.save(out_tmp)
         if report is not None:
-            save_mixture_report(report_tmp, fit.mixture, fit.measurements)
+            diffwash.fit.save_mixture_report(report_tmp, fit.mixture, fit.measurements)
     _wrote(out, report)
     print(f"  a library of {len(fit.names)} mixable pigments (amounts in coats): diffwash predict {out} --table ...")
     print(f"done in {time.perf_counter() - t0:.2f} s")
@@ -222,15 +206,15 @@ def _run_table(args, out: Path, report: Path | None) -> int:
     if args.loss == "noise":
         raise DiffwashError("a table has no pixels to estimate noise from: choose de2000, cie94, lab or srgb",
                             field="--loss")  # fmt: skip
-    base = PLAIN if args.plain else FitModel()
-    model = FitModel(
+    base = diffwash.fit.PLAIN if args.plain else diffwash.fit.FitModel()
+    model = diffwash.fit.FitModel(
         thickness=args.thickness or base.thickness,
         surface=args.surface or base.surface,
         loss=args.loss or base.loss,
         prior=base.prior,
     )
-    table = read_table(args.table, linear=args.linear)
-    fit = fit_table(table, model=model, max_steps=args.max_steps, batch=args.batch or "auto")
+    table = diffwash.fit.read_table(args.table, linear=args.linear)
+    fit = diffwash.fit.fit_table(table, model=model, max_steps=args.max_steps, batch=args.batch or "auto")
     print(f"{len(fit.pigments)} pigments from {len(table)} measurements; model: "
           f"{', '.join(f'{k}={v}' for k, v in model.describe().items())}")  # fmt: skip
     width = max(len("pigment"), *(len(n) for n in fit.names))
@@ -246,7 +230,7 @@ def _run_table(args, out: Path, report: Path | None) -> int:
     with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         fit.save(out_tmp)
         if report is not None:
-            save_table_report(report_tmp, fit, table)
+            diffwash.fit.save_table_report(report_tmp, fit, table)
     _wrote(out, report)
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0

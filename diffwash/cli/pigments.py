@@ -5,10 +5,10 @@ from __future__ import annotations
 import json
 import sys
 
-from .. import pigments, swatches
+import diffwash
 
-NAME = "pigments"
-HELP = "list the pigment library"
+from .. import io as dio
+
 USES_JAX = False
 
 
@@ -23,21 +23,21 @@ def _swatch(rgb) -> str:
 
 
 def run(args) -> int:
-    lib = pigments.library(args.library)
+    lib = dio.read_pigments(args.library)  # checked as `pigments.library` checks them, without JAX
     if args.json:
-        print(json.dumps({"pigments": [p.to_dict() for p in lib.values()]}, indent=2))
+        print(json.dumps({"pigments": lib}, indent=2))
         return 0
-    colour = sys.stdout.isatty()
+    colour = sys.stdout.isatty()  # a terminal also gets each pigment's colour, from the model (JAX)
 
-    width = max(len("pigment"), *(len(n) for n in lib))
+    width = max(len("pigment"), *(len(p["name"]) for p in lib))
     head = f"{'pigment':<{width}}  {'K (r g b)':<20}  {'S (r g b)':<22}  {'density':>7}  {'staining':>8}  {'granularity':>11}"
     print(head)
     print("-" * len(head))
-    for name, p in lib.items():
-        K = " ".join(f"{v:<6g}" for v in p.K)
-        S = " ".join(f"{v:<6g}" for v in p.S)
-        line = f"{name:<{width}}  {K:<20}  {S:<22}  {p.density:>7g}  {p.staining:>8g}  {p.granularity:>11g}"
+    for p in lib:
+        K = " ".join(f"{v:<6g}" for v in p["K"])
+        S = " ".join(f"{v:<6g}" for v in p["S"])
+        line = f"{p['name']:<{width}}  {K:<20}  {S:<22}  {p['density']:>7g}  {p['staining']:>8g}  {p['granularity']:>11g}"
         if colour:
-            line += "  " + _swatch(swatches.swatch_colours(p, coats=(1.0,))[0][0])
+            line += "  " + _swatch(diffwash.swatches.swatch_colours(diffwash.pigments.parse(p), coats=(1.0,))[0][0])
         print(line)
     return 0

@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import time
 
-from .. import library, measurements
+import diffwash
+
 from .. import io as dio
 from . import check_output
 
-NAME = "predict"
-HELP = "predict the colour of single paints and mixtures from a pigment library (fit-swatch --table)"
 USES_JAX = True
 
 
@@ -29,10 +28,10 @@ def run(args) -> int:
     t0 = time.perf_counter()
     out = check_output(args.output, ".csv", "--output")
     dio.refuse_overwriting_inputs({"--output": out}, [args.library, args.table])
-    lib = library.load_library(args.library)
-    queries = measurements.read_queries(args.table)
+    lib = diffwash.library.load_library(args.library)
+    queries = diffwash.measurements.read_queries(args.table)
     pred = lib.predict(queries)
-    library.write_prediction(out, queries, pred)
+    diffwash.library.write_prediction(out, queries, pred)
     print(f"{len(queries)} rows predicted from {len(lib.names)} pigments ({'spectral, ' + str(len(pred.bands)) + ' bands' if lib.spectral else 'sRGB'})")
     print(f"wrote {out}")
     print(f"done in {time.perf_counter() - t0:.2f} s")

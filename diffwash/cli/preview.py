@@ -11,12 +11,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .. import DiffwashError, SHADING_MODES, load_scene, lut, preview, referenced_files
+import diffwash
+
+from .. import SHADING_MODES, DiffwashError
 from .. import io as dio
 from .bake import parse_lut_size
-
-NAME = "preview"
-HELP = "render through the exported shaders and LUT with OpenGL (headless or in a window)"
 
 
 def add_arguments(p) -> None:
@@ -50,26 +49,26 @@ def _lut_files(path) -> list:
 
 def run(args) -> int:
     size = _size(args.size) if args.size else None
-    window = args.window or (args.output is None and preview.can_show())
-    if args.window and not preview.has_display():
+    window = args.window or (args.output is None and diffwash.preview.can_show())
+    if args.window and not diffwash.preview.has_display():
         raise DiffwashError("needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set); use -o FRAME.png to render headless", field="--window")
     out = args.output or (None if window else "preview.png")
     if out is not None:
         dio.image_format_for(out, field="--output")
-        dio.refuse_overwriting_inputs({"--output": out}, [args.scene, *referenced_files(args.scene), *_lut_files(args.lut)])
-    scene = load_scene(args.scene, shading=args.shading, size=size)
+        dio.refuse_overwriting_inputs({"--output": out}, [args.scene, *diffwash.referenced_files(args.scene), *_lut_files(args.lut)])
+    scene = diffwash.load_scene(args.scene, shading=args.shading, size=size)
     if args.lut:
-        table = lut.load(args.lut)
+        table = diffwash.lut.load(args.lut)
     else:
         # As `diffwash export` writes it by default: a 16-bit sRGB PNG.
-        table = lut.load_encoded(lut.bake(scene, parse_lut_size(args.lut_size, "--lut-size"), kind="rt" if args.rt else "colour"), "png16")
+        table = diffwash.lut.load_encoded(diffwash.lut.bake(scene, parse_lut_size(args.lut_size, "--lut-size"), kind="rt" if args.rt else "colour"), "png16")
     if window:
-        last = preview.show(scene, lut=table, frames=args.frames, keep_last=out is not None)
+        last = diffwash.preview.show(scene, lut=table, frames=args.frames, keep_last=out is not None)
         if out and last is not None:
             dio.write_image(out, last)
             print(f"wrote {out} (the window's last frame)")
         return 0
-    frame = preview.render(scene, lut=table)
+    frame = diffwash.preview.render(scene, lut=table)
     dio.write_image(out, frame)
     print(f"wrote {out} ({scene.width}x{scene.height}, {scene.shading}, {table.size[0]}x{table.size[1]} {table.kind} LUT, OpenGL: {preview.renderer_name()})")
     return 0

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import SHADING_MODES, DiffwashError, FailureError, colorimetry, load_scene, referenced_files, render_strips
+import diffwash
+
+from .. import SHADING_MODES, DiffwashError, FailureError
 from .. import io as dio
 
-NAME = "render"
-HELP = "render a scene file as a watercolour PNG"
 USES_JAX = True
 
 
@@ -44,7 +44,7 @@ def _encode(strip, alpha: bool, bits: int, scene_file: str) -> np.ndarray:
     rgba = np.asarray(strip, np.float64)
     if not np.all(np.isfinite(rgba)):  # never expected; never written
         raise FailureError("the rendering has non-finite pixels; nothing was written", file=scene_file)
-    values = colorimetry.to_display(rgba[..., :3])
+    values = diffwash.colorimetry.to_display(rgba[..., :3])
     if alpha:
         values = np.concatenate([values, np.clip(rgba[..., 3:], 0, 1)], axis=-1)
     return dio.to_uint(values, bits)
@@ -52,14 +52,14 @@ def _encode(strip, alpha: bool, bits: int, scene_file: str) -> np.ndarray:
 
 def run(args) -> int:
     out = Path(args.output)
-    dio.refuse_overwriting_inputs({"--output": out}, [args.scene, *referenced_files(args.scene)])
+    dio.refuse_overwriting_inputs({"--output": out}, [args.scene, *diffwash.referenced_files(args.scene)])
     dio.image_format_for(out, bits=args.bits, alpha=args.alpha, field="--output")
     size = parse_size(args.size) if args.size is not None else None
     start = time.perf_counter()
-    scene = load_scene(args.scene, shading=args.shading, size=size)
+    scene = diffwash.load_scene(args.scene, shading=args.shading, size=size)
     # Strip by strip (bounded memory at any size), encoded as they come.
     image = np.empty((scene.height, scene.width, 4 if args.alpha else 3), np.uint16 if args.bits > 8 else np.uint8)
-    for row, strip in render_strips(scene, antialias=args.antialias, alpha=True):
+    for row, strip in diffwash.render_strips(scene, antialias=args.antialias, alpha=True):
         image[row : row + strip.shape[0]] = _encode(strip, args.alpha, args.bits, args.scene)
     dio.write_image(out, image, bits=args.bits)
     elapsed = time.perf_counter() - start

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import DiffwashError, library, pigments, swatchcard
+import diffwash
+
+from .. import DiffwashError
 from .. import io as dio
 
-NAME = "swatch-card"
-HELP = "make a synthetic swatch-card photo and its layout (for fit-swatch)"
 USES_JAX = True
 
 
@@ -56,11 +56,11 @@ def run(args) -> int:
         raise DiffwashError(f"must be comma-separated numbers, got {args.coats!r}", field="--coats") from None
     if not coats or any(not (0 < c < 1e3) for c in coats):
         raise DiffwashError(f"must be numbers of coats > 0, got {args.coats!r}", field="--coats")
-    pigment = pigments.load(args.pigment)
-    effects = swatchcard.IDEAL if args.ideal else swatchcard.CameraEffects()
-    card = swatchcard.make_swatch_card(pigment, coats=coats, black=not args.no_black, effects=effects, seed=args.seed)
+    pigment = diffwash.pigments.load(args.pigment)
+    effects = diffwash.swatchcard.IDEAL if args.ideal else diffwash.swatchcard.CameraEffects()
+    card = diffwash.swatchcard.make_swatch_card(pigment, coats=coats, black=not args.no_black, effects=effects, seed=args.seed)
     card.layout["name"] = pigment.name
-    swatchcard.save_swatch_card(card, out, layout, bits=args.bits)
+    diffwash.swatchcard.save_swatch_card(card, out, layout, bits=args.bits)
     h, w = card.photo.shape[:2]
     print(f"wrote {out} ({w}x{h}, {pigment.name} at {', '.join(f'{c:g}' for c in coats)} coats"
           f"{'' if args.no_black else ' over paper and black'}) and {layout}")  # fmt: skip
@@ -77,19 +77,19 @@ def _mixture_card(args, out: Path, layout: Path) -> int:
         raise DiffwashError("give each patch's coats in --patches (PIGMENTS:COATS) instead", field="--coats")
     dio.refuse_overwriting_inputs({"--output": out, "--layout": layout}, [args.library])
     patches = parse_patches(args.patches)
-    lib = library.load_library(args.library)
+    lib = diffwash.library.load_library(args.library)
     known = {n.lower() for n in lib.names}
     unknown = sorted({n for names, _ in patches for n in names.split("+") if n.lower() not in known})
     if unknown:
         raise DiffwashError(f"{', '.join(unknown)} not in the library (it has {', '.join(lib.names)})", field="--patches")
-    effects = swatchcard.IDEAL if args.ideal else swatchcard.CameraEffects()
+    effects = diffwash.swatchcard.IDEAL if args.ideal else diffwash.swatchcard.CameraEffects()
     try:
-        card = swatchcard.make_mixture_card(lib, patches, amount_per_coat=args.amount_per_coat, black=not args.no_black,
+        card = diffwash.swatchcard.make_mixture_card(lib, patches, amount_per_coat=args.amount_per_coat, black=not args.no_black,
                                             effects=effects, seed=args.seed)  # fmt: skip
     except ValueError as e:
         field = "--amount-per-coat" if "amount_per_coat" in str(e) else "--patches"
         raise DiffwashError(str(e).replace("amount_per_coat ", ""), field=field) from None
-    swatchcard.save_swatch_card(card, out, layout, bits=args.bits)
+    diffwash.swatchcard.save_swatch_card(card, out, layout, bits=args.bits)
     h, w = card.photo.shape[:2]
     print(f"wrote {out} ({w}x{h}, {len(patches)} patches of {Path(args.library).name}"
           f"{'' if args.no_black else ' over paper and black'}) and {layout}")  # fmt: skip

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import DiffwashError, pigments, shading, swatches
-from .. import io as dio
+import diffwash
 
-NAME = "swatches"
-HELP = "draw a swatch chart of pigments over paper and over black"
+from .. import DiffwashError
+from .. import io as dio
 
 
 def add_arguments(p) -> None:
@@ -27,11 +26,11 @@ def run(args) -> int:
         raise DiffwashError(f"must be comma-separated numbers, got {args.coats!r}", field="--coats") from None
     if not coats or any(not (c >= 0 and c < 1e6) for c in coats):
         raise DiffwashError(f"must be finite numbers >= 0, got {args.coats!r}", field="--coats")
-    paper = args.paper if args.paper is not None else shading.DEFAULT_PAPER
+    paper = args.paper if args.paper is not None else diffwash.shading.DEFAULT_PAPER
     if any(not (0 <= v <= 1) for v in paper):
         raise DiffwashError(f"must be reflectances in [0, 1], got {paper}", field="--paper")
-    names = list(pigments.library()) if [n.lower() for n in args.names] == ["all"] else args.names
-    chosen = [pigments.load(n) for n in names]
-    swatches.save_chart(args.output, chosen, coats, paper)
+    names = list(diffwash.pigments.library()) if [n.lower() for n in args.names] == ["all"] else args.names
+    chosen = [diffwash.pigments.load(n) for n in names]
+    diffwash.swatches.save_chart(args.output, chosen, coats, paper)
     print(f"wrote {args.output} ({len(chosen)} pigments x {len(coats)} coats)")
     return 0

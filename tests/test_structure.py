@@ -2,12 +2,19 @@
 
 These hold the structure issue 14 asks for: no import cycles inside `diffwash/`, imports inside
 functions only for optional dependencies, the CLI importing nothing private, and the exported
-shaders generated from the model's own functions and constants.
+shaders generated from the model's own functions and constants; and issue 22's start-up: the
+packages load their submodules on first use, so `import diffwash` and `diffwash --help` load none of
+the heavy dependencies.
 """
 
 from __future__ import annotations
 
 import ast
+import importlib
+import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -101,7 +108,21 @@ def test_imports_inside_functions_are_only_for_optional_dependencies():
     assert not offenders, "\n".join(sorted(set(offenders)))
 
 
+def _private(dotted: str) -> bool:
+    return any(part.startswith("_") and not part.endswith("__") for part in dotted.split("."))
+
+
+def _attribute_chain(node: ast.Attribute) -> str | None:
+    """`diffwash.fit.fit_table` for that expression; None unless it is a chain of names."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    return ".".join([node.id, *reversed(parts)]) if isinstance(node, ast.Name) else None
+
+
 def test_the_command_line_uses_only_the_public_api():
+    """Neither what the CLI imports nor what it reaches as `diffwash.NAME...` (the commands' run time) is private."""
     offenders = []
     for module, found in _imports().items():
         if not module.startswith("diffwash.cli"):
@@ -109,9 +130,94 @@ def test_the_command_line_uses_only_the_public_api():
         for target, _, line in found:
             if not target.startswith("diffwash") or target.startswith("diffwash.cli"):
                 continue
-            if any(part.startswith("_") and not part.endswith("__") for part in target.split(".")):
+            if _private(target):
                 offenders.append(f"{module}:{line} imports {target}")
+    for path in sorted((PACKAGE / "cli").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            chain = _attribute_chain(node) if isinstance(node, ast.Attribute) else None
+            if chain and chain.startswith("diffwash.") and _private(chain):
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} uses {chain}")
     assert not offenders, "\n".join(sorted(set(offenders)))
+
+
+#: Lazily loaded packages: their public API is their `__init__.pyi` (what `lazy_loader.attach_stub` reads).
+LAZY_PACKAGES = ("diffwash", "diffwash.fit", "diffwash.look")
+
+
+def _stub_names(package: str) -> dict[str, tuple[str, str | None]]:
+    """Public name -> (module, attribute; None for a submodule), from the package's `__init__.pyi`."""
+    stub = PACKAGE.parent.joinpath(*package.split("."), "__init__.pyi")
+    names = {}
+    for node in ast.parse(stub.read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.ImportFrom):
+            assert node.level == 1, f"{stub}: only `from .module import name as name`"
+            for alias in node.names:
+                assert alias.asname in (None, alias.name), f"{stub}: {alias.name} as {alias.asname} (attach_stub renames nothing)"
+                module = f"{package}.{node.module}" if node.module else f"{package}.{alias.name}"
+                names[alias.name] = (module, alias.name if node.module else None)
+    return names
+
+
+@pytest.mark.parametrize("package", LAZY_PACKAGES)
+def test_lazy_packages_offer_their_stubs_names(package):
+    """Every name of the stub is in `__all__` and `dir()`, and is the object its module defines."""
+    pkg = importlib.import_module(package)
+    names = _stub_names(package)
+    assert sorted(pkg.__all__) == sorted(names)
+    assert set(names) <= set(dir(pkg))
+    for name, (module, attr) in names.items():
+        target = importlib.import_module(module)
+        assert getattr(pkg, name) is (target if attr is None else getattr(target, attr)), name
+
+
+#: What a command that neither renders nor fits must not import (seconds each, on 2 cores).
+HEAVY = ("jax", "colour", "matplotlib", "moderngl", "OpenEXR", "scipy", "trimesh", "PIL.Image")
+
+_PROBE = """
+import runpy, sys, time
+start = time.perf_counter()
+if sys.argv[1:] == ["--import"]:
+    import diffwash
+else:
+    sys.argv = ["diffwash", *sys.argv[1:]]
+    try:
+        runpy.run_module("diffwash", run_name="__main__")
+    except SystemExit:
+        pass
+print("LOADED", *[m for m in {heavy!r} if m in sys.modules], file=sys.stderr)
+"""
+
+
+def _probe(*args: str) -> tuple[list[str], float]:
+    """The heavy modules a fresh `python -m diffwash ARGS` (`--import`: `import diffwash`) loaded, and its wall time."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "DIFFWASH_CACHE_DIR": "off"}
+    start = time.perf_counter()
+    run = subprocess.run([sys.executable, "-c", _PROBE.format(heavy=HEAVY), *args], env=env, cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)  # fmt: skip
+    elapsed = time.perf_counter() - start
+    assert run.returncode == 0, run.stderr
+    line = [l for l in run.stderr.splitlines() if l.startswith("LOADED")][-1]
+    return line.split()[1:], elapsed
+
+
+@pytest.mark.parametrize("args", [("--import",), ("--version",), ("--help",), ("render", "--help"), ("fit-swatch", "--help")])
+def test_starting_loads_no_heavy_dependency(args):
+    """`import diffwash`, `diffwash --version`, `--help` and a command's `--help` load none of `HEAVY`."""
+    loaded, _ = _probe(*args)
+    assert loaded == [], f"{' '.join(args)} imported {', '.join(loaded)}"
+
+
+def test_listing_pigments_needs_no_jax():
+    """`diffwash pigments` (not to a terminal) reads the library as plain data: no JAX, no colour-science."""
+    loaded, _ = _probe("pigments")
+    assert loaded == [], f"diffwash pigments imported {', '.join(loaded)}"
+
+
+def test_diffwash_version_answers_at_once():
+    """A bound that a shared, loaded machine keeps (about 0.1-0.5 s now), but the old 3-14 s start breaks:
+    the best of three fresh runs, interpreter start included."""
+    best = min(_probe("--version")[1] for _ in range(3))
+    assert best < 2.0, f"diffwash --version took {best:.2f} s"
 
 
 def test_shaders_are_generated_from_the_model():

@@ -1,4 +1,4 @@
-"""Heavy dependencies imported when first used: `np = lazy("numpy")` at the top of a module.
+"""Heavy dependencies imported when first used: `colour = lazy("colour")` at the top of a module.
 
 `diffwash` loads its own submodules on first use with `lazy_loader.attach_stub` (scientific-python
 SPEC 1). Third-party modules get this smaller proxy rather than `lazy_loader.load`, whose
@@ -6,7 +6,8 @@ SPEC 1). Third-party modules get this smaller proxy rather than `lazy_loader.loa
 replaces its own `sys.modules` entry while importing, which that loader refuses ("substituted in
 sys.modules during a lazy load"), and libraries that ask `"jax" in sys.modules` (array-api-compat,
 inside SciPy) would then import JAX. The proxy imports the module the ordinary way at its first
-attribute access and forwards every access after that; until then the module is not in `sys.modules`.
+attribute access and forwards every read and write after that; until then the module is not in
+`sys.modules`.
 """
 
 from __future__ import annotations
@@ -34,6 +35,15 @@ class _LazyModule:
 
     def __getattr__(self, attr: str) -> Any:  # only for names the proxy itself lacks
         return getattr(self._load(), attr)
+
+    def __setattr__(self, attr: str, value: Any) -> None:  # `Image.MAX_IMAGE_PIXELS = None` sets the module's
+        if attr in _LazyModule.__slots__:
+            object.__setattr__(self, attr, value)
+        else:
+            setattr(self._load(), attr, value)
+
+    def __delattr__(self, attr: str) -> None:
+        delattr(self._load(), attr)
 
     def __dir__(self) -> list[str]:
         return dir(self._load())

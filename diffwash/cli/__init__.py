@@ -1,11 +1,11 @@
 """The `diffwash` command: a thin layer over the Python API.
 
-Each subcommand lives in its own module here with `add_arguments(parser)`
-and `run(args) -> int` (`COMMANDS` names it, with its one-line help); every
-one calls a public function of the library. Errors caused by the user's input print one line
-(`diffwash: error: FILE: FIELD: problem`) and exit with status 2; work that
-fails (a fit that does not converge, a full disk) exits with 1, also with one
-line and no traceback. Outputs are written to a temporary name and renamed,
+Each subcommand lives in its own module here with `add_arguments(parser)` and
+`run(args) -> int` (`COMMANDS` names it, with its one-line help); every one
+calls a public function of the library. Errors caused by the user's input print
+one line (`diffwash: error: FILE: FIELD: problem`) and exit with status 2; work
+that fails (a fit that does not converge, a full disk) exits with 1, also with
+one line and no traceback. Outputs are written to a temporary name and renamed,
 so a failure leaves nothing half-written.
 
 The command line starts at once: `diffwash --version` and `--help` import no subcommand, and a

@@ -70,5 +70,5 @@ def run(args) -> int:
         return 0
     frame = diffwash.preview.render(scene, lut=table)
     dio.write_image(out, frame)
-    print(f"wrote {out} ({scene.width}x{scene.height}, {scene.shading}, {table.size[0]}x{table.size[1]} {table.kind} LUT, OpenGL: {preview.renderer_name()})")
+    print(f"wrote {out} ({scene.width}x{scene.height}, {scene.shading}, {table.size[0]}x{table.size[1]} {table.kind} LUT, OpenGL: {diffwash.preview.renderer_name()})")
     return 0

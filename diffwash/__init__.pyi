@@ -4,6 +4,7 @@ Each name here is imported from its module on first use.
 """
 
 from . import colorimetry as colorimetry
+from . import demo as demo
 from . import fit as fit
 from . import io as io
 from . import km as km

@@ -137,6 +137,8 @@ def test_the_command_line_uses_only_the_public_api():
             chain = _attribute_chain(node) if isinstance(node, ast.Attribute) else None
             if chain and chain.startswith("diffwash.") and _private(chain):
                 offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} uses {chain}")
+            elif chain and chain.startswith("diffwash.") and chain.split(".")[1] not in _stub_names("diffwash"):
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} uses {chain}, which diffwash does not name")
     assert not offenders, "\n".join(sorted(set(offenders)))
 
 

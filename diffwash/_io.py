@@ -5,6 +5,12 @@ the destination folder (or a temporary folder beside it) and renames it into
 place once complete; a write that fails (a full disk) removes the temporary
 and raises a one-line `FailureError` naming the file.
 
+Only regular files are read (`check_input_file`, `open_input`): a folder, a named
+pipe (which would block the read forever), a device (`/dev/zero` never ends) or a
+socket is refused in one line naming what it is, and so is a file larger than
+`max_file_bytes()` (default 256 MiB, `$DIFFWASH_MAX_FILE_BYTES` to change it),
+checked from its size before a byte is read.
+
 Images are checked before they are decoded: a header that announces more than
 `max_image_pixels()` pixels (default 8192 x 8192, `$DIFFWASH_MAX_IMAGE_PIXELS`
 to change it) is refused without allocating them.
@@ -19,6 +25,7 @@ import json
 import math
 import os
 import shutil
+import stat
 import struct
 import tempfile
 import threading
@@ -42,7 +49,7 @@ __all__ = [
     "read_json", "write_json", "write_text", "atomic_path", "atomic_paths", "atomic_folder", "read_image",
     "write_png", "write_image", "save_figure", "image_format_for", "to_uint", "finite_number", "check_float32",
     "refuse_overwriting_inputs", "max_image_pixels", "image_pixel_limit", "MAX_IMAGE_PIXELS", "IMAGE_FORMATS",
-    "FLOAT32_MAX",
+    "FLOAT32_MAX", "check_input_file", "open_input", "max_file_bytes", "MAX_FILE_BYTES", "FILE_BYTES_ENV",
 ]  # fmt: skip
 
 #: The largest magnitude float32 holds; diffwash computes in float32, so larger numbers are refused.
@@ -51,6 +58,10 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 MAX_IMAGE_PIXELS = 8192 * 8192
 #: The environment variable that changes `MAX_IMAGE_PIXELS`.
 PIXELS_ENV = "DIFFWASH_MAX_IMAGE_PIXELS"
+#: Default largest input file (bytes) read: 256 MiB, far above any scene, table, library or photo diffwash reads.
+MAX_FILE_BYTES = 256 * 1024 * 1024
+#: The environment variable that changes `MAX_FILE_BYTES`.
+FILE_BYTES_ENV = "DIFFWASH_MAX_FILE_BYTES"
 #: Image formats written, by extension.
 IMAGE_FORMATS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg"}
 #: Image formats read through Pillow (PNG is read with pypng, which keeps 16 bits); no format that runs
@@ -61,15 +72,93 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
 
 
-def read_json(path: str | os.PathLike) -> Any:
-    """Parse a JSON file; a missing file or bad JSON is a one-line `DiffwashError`."""
+def max_file_bytes() -> int:
+    """The largest input file read, in bytes: `$DIFFWASH_MAX_FILE_BYTES`, else `MAX_FILE_BYTES`."""
+    env = os.environ.get(FILE_BYTES_ENV, "").strip()
+    if not env:
+        return MAX_FILE_BYTES
+    try:
+        n = float(env)
+    except ValueError:
+        n = math.nan
+    if not (math.isfinite(n) and n >= 1 and n.is_integer()):
+        raise DiffwashError(f"must be a whole number of bytes >= 1, got {env!r}", field=FILE_BYTES_ENV)
+    return int(n)
+
+
+#: What a file that is not a regular file is, by its `stat` mode test.
+_KINDS = ((stat.S_ISDIR, "is a folder, not a file"), (stat.S_ISFIFO, "is a named pipe (FIFO), not a regular file"),
+          (stat.S_ISCHR, "is a character device, not a regular file"),
+          (stat.S_ISBLK, "is a block device, not a regular file"),
+          (stat.S_ISSOCK, "is a socket, not a regular file"))  # fmt: skip
+
+
+def _check_stat(st: os.stat_result, path: Path, file: Any, field: str | None) -> None:
+    shown = "" if file is None else f"{os.fspath(path)}: "
+    where = path if file is None else file
+    for test, what in _KINDS:
+        if test(st.st_mode):
+            raise DiffwashError(f"{shown}{what}; diffwash reads only regular files", file=where, field=field)
+    if not stat.S_ISREG(st.st_mode):
+        raise DiffwashError(f"{shown}is not a regular file; diffwash reads only regular files", file=where, field=field)
+    limit = max_file_bytes()
+    if st.st_size > limit:
+        raise DiffwashError(f"{shown}is {st.st_size:,} bytes, over the limit of {limit:,} for an input file; to read it, "
+                            f"raise the limit with {FILE_BYTES_ENV}=N", file=where, field=field)  # fmt: skip
+
+
+def check_input_file(path: str | os.PathLike, *, file: Any = None, field: str | None = None) -> Path:
+    """`path` as a `Path` if it is a regular file within `max_file_bytes()`; else a one-line `DiffwashError`.
+
+    Only the file's `stat` is read (a named pipe is never opened, so nothing
+    blocks). The error names `path`, or `file` and `field` (a scene naming the
+    file) with `path` in the message.
+    """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        st = os.stat(path)
     except FileNotFoundError:
-        raise DiffwashError("no such file", file=path) from None
-    except IsADirectoryError:
-        raise DiffwashError("is a folder, not a file", file=path) from None
+        raise DiffwashError("no such file" if file is None else f"no such file: {os.fspath(path)}", file=path if
+                            file is None else file, field=field) from None  # fmt: skip
+    except (OSError, ValueError) as e:
+        shown = "" if file is None else f"{os.fspath(path)}: "
+        raise DiffwashError(f"{shown}cannot read: {getattr(e, 'strerror', None) or e}", file=path if file is None else
+                            file, field=field) from None  # fmt: skip
+    _check_stat(st, path, file, field)
+    return path
+
+
+@contextlib.contextmanager
+def open_input(path: str | os.PathLike, mode: str = "rb", **kwargs: Any) -> Iterator[Any]:
+    """Open an input file for reading, refusing anything but a regular file within `max_file_bytes()`.
+
+    The file is opened without blocking (a named pipe swapped in after a check
+    cannot hang the read) and checked on the open descriptor. `mode` is `"rb"`
+    or `"r"` (with `open`'s keywords: `encoding`, `newline`).
+    """
+    path = check_input_file(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as e:
+        raise DiffwashError(f"cannot read: {e.strerror or e}", file=path) from None
+    try:
+        _check_stat(os.fstat(fd), path, None, None)
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        f = os.fdopen(fd, mode, **kwargs)
+    except BaseException:
+        os.close(fd)
+        raise
+    with f:
+        yield f
+
+
+def read_json(path: str | os.PathLike) -> Any:
+    """Parse a JSON file (a regular file, `open_input`); a missing file or bad JSON is a one-line `DiffwashError`."""
+    path = Path(path)
+    try:
+        with open_input(path, "r", encoding="utf-8") as f:
+            text = f.read()
     except (OSError, UnicodeDecodeError) as e:
         raise DiffwashError(f"cannot read: {e}", file=path) from None
     try:
@@ -455,11 +544,11 @@ def read_image(
     refused raises a one-line `DiffwashError` naming the file.
     """
     path = Path(path)
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise DiffwashError("no such image file", file=path)
     limit = max_image_pixels() if max_pixels is None else max_pixels
     try:
-        with open(path, "rb") as f:
+        with open_input(path, "rb") as f:
             head = f.read(8)
     except OSError as e:
         raise DiffwashError(f"cannot read: {e.strerror or e}", file=path) from None

@@ -35,7 +35,7 @@ from jaxtyping import Float, Int
 from . import pigments as _pigments
 from ._camera import Camera
 from ._errors import DiffwashError
-from ._io import FLOAT32_MAX, check_float32, finite_number, read_json, write_json
+from ._io import FLOAT32_MAX, check_float32, check_input_file, finite_number, read_json, write_json
 from ._lazy import lazy
 from ._mixture import Mixture, mixture
 from ._watercolour import Watercolour, parse_watercolour, watercolour_files, watercolour_to_dict
@@ -167,8 +167,9 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
 
     path = Path(path)
     where = file if file is not None else path
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise _fail(f"mesh file not found: {path}", where, field)
+    check_input_file(path, file=file, field=field)
     # trimesh logs what it tries on a damaged file (tracebacks included); with no logging set up Python would print
     # that on stderr, so give its loggers a handler that drops it while loading (set-up logging still gets it).
     quiet = logging.NullHandler()
@@ -266,7 +267,7 @@ def _load_library(ref: Any, file: Any, field: str, base: Path, cache: dict) -> t
     path = base / ref
     key = os.path.abspath(path)
     if key not in cache:
-        if not path.is_file():
+        if not os.path.lexists(path):
             raise _fail(f"no such library file: {ref}", file, field)
         try:
             lib = load_library(path)

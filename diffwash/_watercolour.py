@@ -28,6 +28,7 @@ principal curvature); Praun et al. 2001 (tonal art maps); Montesdeoca et al.
 from __future__ import annotations
 
 import functools
+import os
 from pathlib import Path
 from typing import Any, Callable
 
@@ -42,7 +43,7 @@ from .look._xla import apart
 from . import shading
 from ._errors import DiffwashError
 from ._interpolate import barycentrics, interpolate
-from ._io import check_float32, finite_number
+from ._io import check_float32, check_input_file, finite_number
 from ._rasterize import rasterize as rasterize_op
 
 __all__ = ["Watercolour", "parse_watercolour", "watercolour_to_dict", "watercolour_files", "WATERCOLOUR_KEYS",
@@ -151,8 +152,9 @@ def _paper(settings: dict | None, file: Any, base: Path) -> wl.ScreenTextures:
     if not isinstance(image, str) or not image:
         raise _fail("must be the path of a greyscale image file", file, field)
     path = base / image
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise _fail(f"no such image file: {path}", file, field)
+    check_input_file(path, file=file, field=field)
     try:
         height = wl.paper_from_image(path, field=field)
     except DiffwashError as e:
@@ -177,8 +179,7 @@ def _mix_map(spec: Any, vertices: np.ndarray, file: Any, base: Path) -> np.ndarr
         return wl.mix_along_axis(vertices, axis, softness=float(soft))
     if isinstance(spec, str):
         path = base / spec
-        if not path.is_file():
-            raise _fail(f"no such file: {path}", file, field)
+        check_input_file(path, file=file, field=field)
         try:
             spec = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as e:

@@ -63,7 +63,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from . import shading
 from ._errors import DiffwashError
-from ._io import atomic_path, read_json
+from ._io import atomic_path, check_input_file, open_input, read_json
 from ._lazy import lazy
 from ._mixture import Mixture
 from ._scene import Scene, load_scene
@@ -446,10 +446,10 @@ def _read_exr(path: Path, channels: int) -> np.ndarray:
 
 def _read_png(path: Path) -> tuple[np.ndarray, int]:
 
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise DiffwashError("no such LUT image (named in the sidecar)", file=path)
     try:
-        with open(path, "rb") as f:
+        with open_input(path, "rb") as f:
             w, h, rows, info = png.Reader(file=f).asDirect()
             a = np.vstack([np.asarray(r, np.uint16) for r in rows]).reshape(h, w, info["planes"])
     except png.Error as e:
@@ -482,7 +482,7 @@ def load(path: str | os.PathLike) -> Lut:
     The `Lut`, values decoded to linear float32.
     """
     side = sidecar_path(path)
-    if not side.is_file():
+    if not os.path.lexists(side):
         raise DiffwashError(f"no sidecar {side.name} beside the LUT (it holds the LUT's range and encoding)", file=side)
     head = read_json(side)
     if not isinstance(head, dict) or head.get("format") != SIDECAR_FORMAT:
@@ -518,8 +518,9 @@ def load(path: str | os.PathLike) -> Lut:
         values = np.concatenate(parts, axis=-1)
     else:
         file = folder / files[wanted[0]]
-        if not file.is_file():
+        if not os.path.lexists(file):
             raise DiffwashError("no such LUT file (named in the sidecar)", file=file)
+        check_input_file(file)
         if fmt == "exr":
             values = _read_exr(file, channels)
         else:

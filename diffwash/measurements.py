@@ -49,6 +49,7 @@ import numpy as np
 
 from . import colorimetry, spectral
 from ._errors import DiffwashError
+from ._io import check_float32, open_input
 
 __all__ = ["Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture", "parse_stack", "format_stack",
            "split_layers"]
@@ -261,10 +262,8 @@ def _number(text: str, path: Any, line: int, column: str) -> float:
 
 
 def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    if not path.is_file():
-        raise _fail("no such file", path)
     try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
+        with open_input(path, "r", newline="", encoding="utf-8-sig") as f:
             reader = csv.reader(f)
             header = next(reader, None)
             body = [(reader.line_num, row) for row in reader]

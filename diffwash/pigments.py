@@ -137,7 +137,7 @@ def load(name_or_path: str | os.PathLike, name: str | None = None) -> Pigment:
     """
     if isinstance(name_or_path, os.PathLike) or _looks_like_path(str(name_or_path)) or Path(name_or_path).is_file():
         path = Path(name_or_path)
-        if not path.is_file():
+        if not os.path.lexists(path):
             raise DiffwashError("no such pigment file", file=path)
         pigments = _read_file(path)
         if name is not None:

@@ -486,3 +486,77 @@ def test_demo_replaces_a_folder_it_wrote(cli, tmp_path, quick_demo):
 ])  # fmt: skip
 def test_usage_errors_are_one_line(cli, args, needle):
     refused(cli(*args), needle)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Special files: only regular files are read, within a size limit checked before reading. A named pipe must not
+# block (the test would hang: an alarm fails it instead), a device must not be read until memory runs out.
+
+
+def _special(tmp_path, kind):
+    """A path of `kind`: a named pipe, /dev/zero or a folder."""
+    if kind == "fifo":
+        os.mkfifo(tmp_path / "special")
+        return str(tmp_path / "special")
+    if kind == "folder":
+        (tmp_path / "special").mkdir()
+        return str(tmp_path / "special")
+    return "/dev/zero"
+
+
+def _good_library(folder):
+    (folder / "lib.json").write_text(json.dumps({
+        "format": "diffwash-library", "version": 1, "observation": {"wavelengths": [400, 500, 600, 700]},
+        "pigments": [{"name": "P1", "K": [1.0] * 4, "S": [0.5] * 4}], "grounds": {"paper": [0.8] * 4}}))  # fmt: skip
+    (folder / "q.csv").write_text("pigment,amount,ground\nP1,0.01,paper\n")
+
+
+READERS = {  # reader -> the command reading SPECIAL with it
+    "scene": lambda s: ["render", s, "-o", "x.png"],
+    "mesh": lambda s: write_scene(Path.cwd(), mesh=s) and ["render", "scene.json", "-o", "x.png"],
+    "paper image": lambda s: write_scene(Path.cwd(), watercolour={"paper": {"image": s}}) and
+    ["render", "scene.json", "-o", "x.png"],
+    "pigment file": lambda s: ["pigments", "--library", s],
+    "photo": lambda s: ["fit-swatch", s, "--layout", "card.json", "-o", "p.json"],
+    "layout": lambda s: ["fit-swatch", "card.png", "--layout", s, "-o", "p.json"],
+    "table": lambda s: ["fit-swatch", "--table", s, "-o", "lib2.json"],
+    "library": lambda s: ["predict", s, "--table", "q.csv", "-o", "p.csv"],
+    "query table": lambda s: ["predict", "lib.json", "--table", s, "-o", "p.csv"],
+}  # fmt: skip
+WHAT = {"fifo": "is a named pipe (FIFO), not a regular file", "dev": "is a character device, not a regular file",
+        "folder": "is a folder, not a file"}  # fmt: skip
+
+
+@pytest.mark.parametrize("kind", ["fifo", "dev", "folder"])
+@pytest.mark.parametrize("reader", list(READERS))
+def test_only_regular_files_are_read(cli, card, tmp_path, reader, kind):
+    import signal
+
+    special = _special(tmp_path, kind)
+    _good_library(tmp_path)
+    args = READERS[reader](special)
+    before = snapshot(tmp_path)
+
+    def hung(*_):
+        raise AssertionError(f"{reader}: reading a {kind} blocked")
+
+    old = signal.signal(signal.SIGALRM, hung)
+    signal.alarm(60)
+    try:
+        result = cli(*args)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    refused(result, special, WHAT[kind], "reads only regular files")
+    assert snapshot(tmp_path) == before
+
+
+def test_the_file_size_limit_is_checked_before_reading_and_configurable(cli, tmp_path, monkeypatch):
+    write_scene(tmp_path)
+    size = (tmp_path / "scene.json").stat().st_size
+    monkeypatch.setenv("DIFFWASH_MAX_FILE_BYTES", str(size - 1))
+    refused(cli("render", "scene.json", "-o", "x.png"), "scene.json", f"is {size:,} bytes", f"limit of {size - 1:,}",
+            "DIFFWASH_MAX_FILE_BYTES")  # fmt: skip
+    monkeypatch.setenv("DIFFWASH_MAX_FILE_BYTES", "lots")
+    refused(cli("render", "scene.json", "-o", "x.png"), "DIFFWASH_MAX_FILE_BYTES", "whole number of bytes")
+    assert not (tmp_path / "x.png").exists()

@@ -22,14 +22,14 @@ def _needs_library(table: str) -> bool:
     """Band columns named by wavelength, or a `+` (mixture) or `/` (glaze stack) in the pigment column (a glance:
     the readers validate)."""
     try:
-        with open(table, newline="", encoding="utf-8-sig") as f:
+        with dio.open_input(table, "r", newline="", encoding="utf-8-sig") as f:
             rows = csv.reader(f)
             header = [h.strip().lower() for h in next(rows, [])]
             if any(h.replace(".", "", 1).isdigit() for h in header):
                 return True
             col = header.index("pigment") if "pigment" in header else 0
             return any(len(r) > col and ("+" in r[col] or "/" in r[col]) for r in rows)
-    except (OSError, UnicodeDecodeError, csv.Error):
+    except (OSError, UnicodeDecodeError, csv.Error, DiffwashError):
         return False  # the table's own reader says what is wrong with it
 
 

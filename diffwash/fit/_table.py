@@ -44,7 +44,7 @@ import numpy as np
 
 from .. import colorimetry
 from .._errors import DiffwashError
-from .._io import check_float32
+from .._io import check_float32, open_input
 from ..pigments import Pigment
 from ..pigments import save as save_pigments
 from ._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
@@ -127,10 +127,8 @@ def read_table(path: str | os.PathLike, *, linear: bool = False) -> MeasurementT
     `DiffwashError` naming the file, the line and the column.
     """
     path = Path(path)
-    if not path.is_file():
-        raise _fail("no such file", path)
     try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
+        with open_input(path, "r", newline="", encoding="utf-8-sig") as f:
             reader = csv.reader(f)
             header = next(reader, None)
             body = [(i + 2, row) for i, row in enumerate(reader)]
@@ -249,9 +247,7 @@ def read_ntu_wpsm(path: str | os.PathLike, paper: Sequence[float] = NTU_PAPER) -
     pigment mixing", arXiv:1904.00275 (2019).
     """
     path = Path(path)
-    if not path.is_file():
-        raise _fail("no such file", path)
-    with open(path, newline="", encoding="utf-8") as f:
+    with open_input(path, "r", newline="", encoding="utf-8") as f:
         rows = list(csv.reader(f))
     pig, amt, vals = [], [], []
     for i, row in enumerate(rows[1:], start=2):

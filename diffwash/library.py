@@ -41,7 +41,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from . import colorimetry, mixing, spectral
+from . import _schema, colorimetry, mixing, spectral
 from ._errors import DiffwashError
 from ._io import atomic_path, finite_number, read_json, write_json
 from .measurements import Measurements, Queries, parse_stack, read_queries
@@ -287,40 +287,39 @@ def _pair_terms(d: Any, names: list[str], obs: spectral.Observation, path: Any) 
 
 
 def library_from_dict(d: Any, path: Any = None) -> Library:
-    """A `Library` from its JSON object (checked: one-line errors name the file and the field)."""
+    """A `Library` from its JSON object, checked against its declaration (`diffwash._schema.LibraryFile`: types,
+    ranges, float32, names colliding ignoring case and spaces) before anything is computed; one-line errors name
+    the file and the key."""
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise DiffwashError(f"is not a {FORMAT} file (no \"format\": \"{FORMAT}\")", file=path)
-    obs = _observation(d.get("observation"), path)
-    nb = len(obs.bands)
-    pigs = d.get("pigments")
-    if not isinstance(pigs, list) or not pigs:
-        raise DiffwashError("needs a non-empty list of pigments", file=path, field="pigments")
-    K, S, gam, w, names = [], [], [], [], []
-    for i, p in enumerate(pigs):
-        where = f"pigments[{i}]"
-        if not isinstance(p, dict) or not isinstance(p.get("name"), str):
-            raise DiffwashError("each pigment needs a name", file=path, field=where)
-        K.append(_vector(p, "K", nb, path, where))
-        S.append(_vector(p, "S", nb, path, where))
-        law = p.get("amount_law") or {}
-        g = law.get("gamma", 1.0)
-        if not isinstance(g, (int, float)) or not np.isfinite(g) or g <= 0:
-            raise DiffwashError("gamma must be a number > 0", file=path, field=f"{where}.amount_law.gamma")
-        ref = float(law.get("reference", mixing.REFERENCE_AMOUNT))
-        gam.append(float(g))
-        w.append(float(p.get("mixing_weight", 1.0)))
-        names.append(p["name"])
-    grounds = {str(k).lower(): _vector(d.get("grounds", {}), k, nb, path, "grounds") for k in d.get("grounds", {})}
-    if not grounds:
-        raise DiffwashError("needs at least one ground", file=path, field="grounds")
-    palette = mixing.Palette(K=jnp.asarray(np.array(K)), S=jnp.asarray(np.array(S)),
-                             law=mixing.AmountLaw(gamma=jnp.asarray(gam), reference=ref),
-                             weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
+    spec = _schema.validate(_schema.LibraryFile, d, path)
+    obs = _observation(spec.observation.model_dump(exclude_none=True), path)
+    names = [p.name for p in spec.pigments]
+    K, S = np.array([p.K for p in spec.pigments], np.float64), np.array([p.S for p in spec.pigments], np.float64)
+    gam = np.array([p.amount_law.gamma for p in spec.pigments])
+    refs = np.array([p.amount_law.reference for p in spec.pigments])
+    ref = float(refs[0])
+    if np.any(refs != ref):
+        # Thickness (a / r_i)^g_i = (a / r)^g_i (r / r_i)^g_i: another reference is a factor on that pigment's K and S.
+        if d.get("pair_terms") is not None:
+            i = int(np.flatnonzero(refs != ref)[0])
+            raise DiffwashError(f"differs from pigments[0]'s ({ref:g}); pair terms need one reference amount",
+                                file=path, field=f"pigments[{i}].amount_law.reference")  # fmt: skip
+        factor = (ref / refs) ** gam
+        K, S = K * factor[:, None], S * factor[:, None]
+        big = np.flatnonzero(np.max(np.maximum(K, S), axis=1) > _schema.COEFFICIENT_MAX)
+        if len(big):
+            raise DiffwashError(f"is too far from pigments[0]'s ({ref:g}): on one reference amount its K or S would "
+                                f"exceed {_schema.COEFFICIENT_MAX:g}", file=path,
+                                field=f"pigments[{int(big[0])}].amount_law.reference")  # fmt: skip
+    palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam), reference=ref),
+                             weights=jnp.asarray([p.mixing_weight for p in spec.pigments]), names=tuple(names),
+                             wavelengths=obs.wavelengths)  # fmt: skip
     if d.get("pair_terms") is not None:
         palette = eqx.tree_at(lambda p: p.pairs, palette, _pair_terms(d["pair_terms"], names, obs, path),
                               is_leaf=lambda x: x is None)  # fmt: skip
-    k2 = float((d.get("surface") or {}).get("k2", 0.0))
-    return Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=d.get("fit"))
+    grounds = {k.lower(): np.asarray(v, np.float64) for k, v in spec.grounds.items()}
+    return Library(palette=palette, grounds=grounds, observation=obs, k2=spec.surface.k2, fit=d.get("fit"))
 
 
 def load_library(path: str | os.PathLike) -> Library:

@@ -52,7 +52,7 @@ from ._errors import DiffwashError
 from ._io import check_float32, open_input
 
 __all__ = ["Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture", "parse_stack", "format_stack",
-           "split_layers"]
+           "split_layers", "refuse_colliding_names"]
 
 #: Reflectance above this is taken for a table in percent, not a brightener's glow.
 MAX_REFLECTANCE = 2.0
@@ -258,7 +258,21 @@ def _number(text: str, path: Any, line: int, column: str) -> float:
         raise _fail(f"not a number: {text!r}", path, line, column) from None
     if not math.isfinite(v):
         raise _fail(f"must be a finite number, got {text!r}", path, line, column)
-    return v
+    return check_float32(v, file=path, field=f"line {line}: {column}" if line is not None else column)
+
+
+def refuse_colliding_names(names: Any, lines: Any, path: Any) -> None:
+    """Refuse pigment names (per row, tuples) that differ as written but not ignoring case and runs of spaces
+    (`P1` and `p1`, `P 1` and `P  1`): a library could not tell them apart."""
+    seen: dict[str, tuple[str, int]] = {}
+    for row, line in zip(names, lines):
+        for n in (row,) if isinstance(row, str) else row:
+            key = " ".join(n.casefold().split())
+            first = seen.setdefault(key, (n, int(line)))
+            if first[0] != n:
+                raise _fail(f"{n!r} and {first[0]!r} (line {first[1]}) name the same pigment (names are compared "
+                            f"ignoring case and spaces): write them alike, or name two pigments apart", path,
+                            int(line), "pigment")  # fmt: skip
 
 
 def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
@@ -347,6 +361,7 @@ def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measu
         sizes.append(size)
     if not pigs:
         raise _fail("has no rows of measurements", path)
+    refuse_colliding_names(pigs, lines, path)
     vals = np.asarray(vals, np.float64)
     lines = np.asarray(lines)
     if grid is None:
@@ -366,12 +381,30 @@ def _wl(w: float) -> str:
     return str(int(w)) if float(w).is_integer() else repr(w)
 
 
-def _rgb_values(vals: np.ndarray, linear: bool, path: Path, lines: np.ndarray) -> tuple[np.ndarray, ...]:
-    top = 255.0 if np.any(vals > 1) else 1.0
+def rgb_scale(vals: np.ndarray, path: Any, lines: Any) -> float:
+    """The top of an r, g, b table's scale: 255, or 1 when no value exceeds 1.
+
+    A table whose values are mostly fractions between 0 and 1 but with some
+    above 1 is a 0-1 table with a typo, not a 0-255 one (read as 0-255 it would
+    fit near-black paint without a word): refused, naming the first value above 1.
+    """
+    vals = np.asarray(vals, np.float64)
     if np.any(vals > 255):
         i, j = np.argwhere(vals > 255)[0]
         raise _fail(f"colour values must be 0-255 (or 0-1), got {vals[i, j]:g}", path, int(lines[i]), "rgb"[j])
-    unit = vals / top
+    if not np.any(vals > 1):
+        return 1.0
+    fractions = np.mean((vals > 0) & (vals < 1) & (vals != np.round(vals)))
+    if fractions > 0.5:
+        i, j = np.argwhere(vals > 1)[0]
+        raise _fail(f"{vals[i, j]:g} is above 1 in a table whose values are mostly 0-1 fractions ({fractions:.0%}): "
+                    f"a typo? (a 0-255 table has whole numbers, a 0-1 table none above 1)", path, int(lines[i]),
+                    "rgb"[j])  # fmt: skip
+    return 255.0
+
+
+def _rgb_values(vals: np.ndarray, linear: bool, path: Path, lines: np.ndarray) -> tuple[np.ndarray, ...]:
+    unit = vals / rgb_scale(vals, path, lines)
     lo, hi = unit <= 0, unit >= 1
     lin = unit if linear else np.asarray(colorimetry.srgb_decode(unit), np.float64)
     return lin, lo, hi

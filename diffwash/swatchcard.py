@@ -51,7 +51,7 @@ import equinox as eqx
 import numpy as np
 
 from . import colorimetry, km, mixing, spectral
-from ._io import atomic_paths, image_format_for, refuse_overwriting_inputs, write_png
+from ._io import FLOAT32_MAX, atomic_paths, image_format_for, refuse_overwriting_inputs, write_png
 from ._lazy import lazy
 from .library import Library
 from .measurements import format_stack, split_layers
@@ -184,6 +184,13 @@ def _edge_profile(patch: int, edge_darkening: float) -> np.ndarray:
     return 1 + edge_darkening * np.exp(-edge / 2.0)
 
 
+def _rng(seed: Any) -> np.random.Generator:
+    """The random generator of `seed`, a whole number >= 0 (a ValueError naming the seed otherwise)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a whole number >= 0, got {seed!r}")
+    return np.random.default_rng(int(seed))
+
+
 def make_swatch_card(
     pigment: Pigment,
     *,
@@ -212,7 +219,7 @@ def make_swatch_card(
 
     A `SwatchCard`.
     """
-    rng = np.random.default_rng(seed)
+    rng = _rng(seed)
     paper = np.asarray(paper, np.float64)
     ink_rgb = np.asarray(ink, np.float64)
     plan = _plan(len(coats), black, patch)
@@ -364,7 +371,11 @@ def make_mixture_card(
     per_coat = float(library.palette.law.reference if amount_per_coat is None else amount_per_coat)
     if not (np.isfinite(per_coat) and per_coat > 0):
         raise ValueError(f"amount_per_coat must be > 0, got {amount_per_coat!r}")
-    rng = np.random.default_rng(seed)
+    most = per_coat * max(sum(a) for _, a in specs)
+    if not most <= FLOAT32_MAX:
+        raise ValueError(f"amount_per_coat {per_coat:g} makes a patch of {most:g}, out of float32 range (magnitude at "
+                         f"most {FLOAT32_MAX:.4g}), which diffwash computes in")  # fmt: skip
+    rng = _rng(seed)
     obs = library.observation
     paper_spec = library.ground_matrix([paper])[0]
     ink_rgb = np.asarray(ink, np.float64)

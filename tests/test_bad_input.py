@@ -560,3 +560,8 @@ def test_the_file_size_limit_is_checked_before_reading_and_configurable(cli, tmp
     monkeypatch.setenv("DIFFWASH_MAX_FILE_BYTES", "lots")
     refused(cli("render", "scene.json", "-o", "x.png"), "DIFFWASH_MAX_FILE_BYTES", "whole number of bytes")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_a_negative_seed_is_blamed_on_the_seed(cli, tmp_path):
+    refused(cli("swatch-card", "Cadmium Red", "--seed", "-1", "-o", "card.png"), "--seed", ">= 0")
+    assert not (tmp_path / "card.png").exists()

@@ -115,3 +115,164 @@ def test_tables_with_mixtures_or_bands_take_the_joint_fit_and_single_rgb_tables_
     assert _library_fit.wants_library(str(tmp_path / "t.csv"), False).spectral
     (tmp_path / "s.csv").write_text("pigment,amount,ground,r,g,b\npaper,0,paper,240,240,235\nP1,0.02,paper,200,40,40\n")
     assert _library_fit.wants_library(str(tmp_path / "s.csv"), False) is None
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Hand-edited libraries: checked against their declaration before anything is computed (issue 23).
+
+
+def _edited(tmp_path, edit):
+    _library(tmp_path)
+    lib = json.loads((tmp_path / "lib.json").read_text())
+    lib["pigments"].append({"name": "P2", "K": [0.2] * 4, "S": [0.4] * 4, "amount_law": {"kind": "power",
+                            "reference": 0.05, "gamma": 1.0}, "mixing_weight": 1.0})  # fmt: skip
+    edit(lib)
+    (tmp_path / "lib.json").write_text(json.dumps(lib))
+    (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1,0.01,paper\nP1+P2,0.01+0.02,paper\n")
+
+
+def _set(path, value):
+    def edit(lib):
+        *head, last = path
+        d = lib
+        for k in head:
+            d = d[k]
+        d[last] = value
+
+    return edit
+
+
+P0 = ("pigments", 0)
+BAD_LIBRARIES = [
+    (_set((*P0, "amount_law"), "power"), ("pigments[0].amount_law", "must be an object")),
+    (_set((*P0, "amount_law"), [0.05, 0.8]), ("pigments[0].amount_law", "must be an object")),
+    (_set(("grounds",), [[0.8] * 4]), ("grounds", "must be an object")),
+    (_set(("surface",), [0.1]), ("surface", "must be an object")),
+    (_set((*P0, "mixing_weight"), "heavy"), ("pigments[0].mixing_weight", "must be a number")),
+    (_set((*P0, "K", 1), 1e39), ("pigments[0].K[1]", "float32")),
+    (_set((*P0, "K", 1), 1e30), ("pigments[0].K[1]", "<= 1e+12")),
+    (_set((*P0, "S", 0), -1), ("pigments[0].S[0]", ">= 0")),
+    (_set((*P0, "amount_law", "gamma"), 1e39), ("pigments[0].amount_law.gamma", "float32")),
+    (_set((*P0, "amount_law", "gamma"), 40), ("pigments[0].amount_law.gamma", "<= 10")),
+    (_set((*P0, "amount_law", "reference"), 0), ("pigments[0].amount_law.reference", "> 0")),
+    (_set(("surface", "k2"), 1), ("surface.k2", "< 1")),
+    (_set(("surface", "k2"), -0.5), ("surface.k2", ">= 0")),
+    (_set((*P0, "mixing_weight"), 0), ("pigments[0].mixing_weight", ">= 1e-06")),
+    (_set((*P0, "mixing_weight"), -1), ("pigments[0].mixing_weight", ">= 1e-06")),
+    (_set(("pigments", 1, "name"), "p1"), ("pigments[1].name", "'p1' and pigments[0].name 'P1'")),
+    (_set(("pigments", 1, "name"), "A+B"), ("pigments[1].name", "'+'")),
+    (_set((*P0, "K"), [1, 1]), ("pigments[0].K", "4 numbers")),
+    (_set((*P0, "K", 2), True), ("pigments[0].K[2]", "must be a number")),
+    (_set((*P0, "amount_law", "speed"), 2), ("pigments[0].amount_law.speed", "unknown key")),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("edit, needles", BAD_LIBRARIES)
+def test_hand_edited_libraries_are_refused_by_predict(cli, tmp_path, edit, needles):
+    _edited(tmp_path, edit)
+    _refused(cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv"), "lib.json", *needles)
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_a_mixing_weight_of_nan_is_refused(tmp_path):
+    from diffwash import DiffwashError
+    from diffwash.library import load_library
+
+    _edited(tmp_path, lambda lib: None)
+    text = (tmp_path / "lib.json").read_text().replace('"mixing_weight": 1.0', '"mixing_weight": NaN', 1)
+    (tmp_path / "lib.json").write_text(text)
+    with pytest.raises(DiffwashError, match=r"pigments\[0\]\.mixing_weight: must be a finite number"):
+        load_library(tmp_path / "lib.json")
+
+
+def test_a_per_pigment_reference_is_kept(tmp_path):
+    """Each pigment's own reference amount counts (before, only the last pigment's was kept, for all)."""
+    import numpy as np
+
+    from diffwash.library import library_from_dict
+
+    def lib(pigments):
+        return library_from_dict({"format": "diffwash-library", "version": 1,
+                                  "observation": {"wavelengths": [400, 500, 600, 700]}, "pigments": pigments,
+                                  "grounds": {"paper": [0.8, 0.7, 0.8, 0.9]}})  # fmt: skip
+
+    p1 = {"name": "P1", "K": [1.0, 2.0, 0.5, 0.1], "S": [0.5] * 4, "amount_law": {"reference": 0.05, "gamma": 0.8}}
+    p2 = {"name": "P2", "K": [0.1, 0.3, 2.0, 1.0], "S": [0.2] * 4, "amount_law": {"reference": 0.2, "gamma": 0.7},
+          "mixing_weight": 2.0}  # fmt: skip
+    both = lib([p1, p2])
+    for p in (p1, p2):
+        alone = lib([p]).predict([p["name"]], [[0.03]]).reflectance
+        np.testing.assert_allclose(both.predict([p["name"]], [[0.03]]).reflectance, alone, rtol=1e-6)
+    # a mixture: each pigment's thickness from its own law, (total / reference_i)^gamma_i
+    p2_on_p1 = dict(p2, K=[k * (0.05 / 0.2) ** 0.7 for k in p2["K"]], S=[s * (0.05 / 0.2) ** 0.7 for s in p2["S"]],
+                    amount_law={"reference": 0.05, "gamma": 0.7})  # fmt: skip
+    np.testing.assert_allclose(both.predict(["P1+P2"], ["0.01+0.02"]).reflectance,
+                               lib([p1, p2_on_p1]).predict(["P1+P2"], ["0.01+0.02"]).reflectance, rtol=1e-6)
+
+
+def test_the_docs_format_tables_are_the_declarations():
+    from diffwash import _schema
+
+    docs = (ROOT / "docs" / "pigments.md").read_text()
+    for model in (_schema.LibraryFile, _schema.Pigment, _schema.AmountLaw, _schema.Observation, _schema.Surface):
+        block = f"<!-- format-table: {model.__name__} -->\n{_schema.format_table(model)}\n<!-- end format-table -->"
+        assert block in docs, f"docs/pigments.md: the table of {model.__name__} differs from its declaration"
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Tables, queries and options: numbers float32 cannot hold, names that collide, a 0-1 table's typo (issue 23).
+
+RGB_HEAD = "pigment,amount,ground,r,g,b\n"
+
+
+@pytest.mark.parametrize(
+    "table, needles",
+    [
+        (HEAD + PAPER + "P1,1e39,paper,0.2,0.1,0.5,0.6\n", ("line 3: amount", "1e+39", "float32")),
+        (HEAD + PAPER + "P1+P2,0.01+1e39,paper,0.2,0.1,0.5,0.6\n", ("line 3: amount", "float32")),
+        (HEAD + PAPER + "P1,0.02,paper,0.2,0.1,0.5,0.6\np1,0.04,paper,0.1,0.1,0.4,0.5\n",
+         ("line 4: pigment", "'p1' and 'P1' (line 3)")),
+        (HEAD + PAPER + "P 1,0.02,paper,0.2,0.1,0.5,0.6\nP2+P  1,0.01+0.01,paper,0.1,0.1,0.4,0.5\n",
+         ("line 4: pigment", "'P  1' and 'P 1' (line 3)")),
+        (RGB_HEAD + "paper,0,paper,240,240,235\nP1,0.02,paper,200,40,40\np1,0.04,paper,150,20,20\n",
+         ("line 4: pigment", "'p1' and 'P1' (line 3)")),
+        (RGB_HEAD + "paper,0,paper,0.94,0.94,0.92\nP1,0.02,paper,0.78,0.16,0.16\nP1,0.04,paper,0.6,1.5,0.08\n",
+         ("line 4: g", "1.5 is above 1", "typo")),
+        (RGB_HEAD + "paper,0,paper,0.94,0.94,0.92\nP1+P2,0.02+0.01,paper,0.5,0.16,0.16\nP2,0.04,paper,0.6,0.4,1.2\n",
+         ("line 4: b", "1.2 is above 1", "typo")),
+    ],
+)  # fmt: skip
+def test_tables_float32_collisions_and_typos_are_refused(cli, tmp_path, table, needles):
+    (tmp_path / "t.csv").write_text(table)
+    _refused(cli("fit-swatch", "--table", "t.csv", "-o", "lib.json"), "t.csv", *needles)
+    assert not (tmp_path / "lib.json").exists()
+
+
+def test_a_query_amount_beyond_float32_is_refused(cli, tmp_path):
+    _library(tmp_path)
+    (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1,0.01,paper\nP1,1e39,paper\n")
+    _refused(cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv"), "q.csv: line 3: amount: 1e+39", "float32")
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_linear_on_a_spectral_table_is_refused(cli, tmp_path):
+    (tmp_path / "t.csv").write_text(GOOD)
+    _refused(cli("fit-swatch", "--table", "t.csv", "--linear", "-o", "lib.json"), "--linear", "r,g,b tables")
+    assert not (tmp_path / "lib.json").exists()
+
+
+@pytest.mark.parametrize(
+    "args, needles",
+    [
+        (["--amount-per-coat", "1e39"], ("--amount-per-coat", "1e+39", "float32")),
+        (["--amount-per-coat", "1e38", "--patches", "P1:10"], ("--amount-per-coat", "float32")),
+        (["--seed", "-1"], ("--seed", ">= 0")),
+    ],
+)  # fmt: skip
+def test_mixture_card_options_are_named(cli, tmp_path, args, needles):
+    _library(tmp_path)
+    patches = [] if "--patches" in args else ["--patches", "P1:1"]
+    result = cli("swatch-card", "--library", "lib.json", *patches, *args, "-o", "card.png")
+    _refused(result, *needles)
+    assert "--patches:" not in result[1]  # the option that was wrong, not another
+    assert not (tmp_path / "card.png").exists()

@@ -48,6 +48,9 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
         if getattr(args, flag):
             raise DiffwashError("does not apply to a spectral or mixture table (fitted jointly: see docs/mixing.md)",
                                 field=f"--{flag}")  # fmt: skip
+    if getattr(args, "linear", False) and m.spectral:
+        raise DiffwashError("applies to r,g,b tables (a spectral table's band columns are reflectance already)",
+                            field="--linear")  # fmt: skip
     if args.refine and not m.spectral:
         raise DiffwashError("applies to spectral tables (an RGB table is fitted in CIEDE2000 already)", field="--refine")
     if args.pair_terms and not m.spectral:

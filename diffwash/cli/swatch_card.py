@@ -42,6 +42,10 @@ def run(args) -> int:
     out = Path(args.output)
     dio.image_format_for(out, bits=args.bits, field="--output")
     layout = Path(args.layout) if args.layout else out.with_suffix(".json")
+    if args.seed < 0:
+        raise DiffwashError(f"must be a whole number >= 0, got {args.seed}", field="--seed")
+    if args.amount_per_coat is not None:
+        dio.check_float32(args.amount_per_coat, field="--amount-per-coat")
     if args.library is not None or args.patches is not None:
         return _mixture_card(args, out, layout)
     if args.pigment is None:
@@ -87,8 +91,8 @@ def _mixture_card(args, out: Path, layout: Path) -> int:
         card = diffwash.swatchcard.make_mixture_card(lib, patches, amount_per_coat=args.amount_per_coat, black=not args.no_black,
                                             effects=effects, seed=args.seed)  # fmt: skip
     except ValueError as e:
-        field = "--amount-per-coat" if "amount_per_coat" in str(e) else "--patches"
-        raise DiffwashError(str(e).replace("amount_per_coat ", ""), field=field) from None
+        field = "--amount-per-coat" if "amount_per_coat" in str(e) else "--seed" if "seed" in str(e) else "--patches"
+        raise DiffwashError(str(e).replace("amount_per_coat ", "").replace("seed ", ""), field=field) from None
     diffwash.swatchcard.save_swatch_card(card, out, layout, bits=args.bits)
     h, w = card.photo.shape[:2]
     print(f"wrote {out} ({w}x{h}, {len(patches)} patches of {Path(args.library).name}"

@@ -45,6 +45,7 @@ import numpy as np
 from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import check_float32, open_input
+from ..measurements import refuse_colliding_names, rgb_scale
 from ..pigments import Pigment
 from ..pigments import save as save_pigments
 from ._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
@@ -176,11 +177,9 @@ def read_table(path: str | os.PathLike, *, linear: bool = False) -> MeasurementT
         lines.append(line)
     if not pig:
         raise _fail("has no rows of measurements", path)
+    refuse_colliding_names(pig, lines, path)
     vals = np.asarray(vals, np.float64)
-    top = 255.0 if np.any(vals > 1) else 1.0
-    if np.any(vals > 255):
-        i = int(np.argmax(np.any(vals > 255, axis=1)))
-        raise _fail(f"colour values must be 0-255 (or 0-1), got {vals[i].tolist()}", path, f"line {lines[i]}")
+    top = rgb_scale(vals, path, lines)
     return _make_table(np.asarray(pig), np.asarray(amt), np.asarray(gnd), vals / top, linear=linear,
                        path=path, lines=np.asarray(lines))  # fmt: skip
 

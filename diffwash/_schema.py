@@ -1,0 +1,273 @@
+"""File formats declared once (pydantic v2): the checks, the located one-line errors and the docs' format tables.
+
+A file kind is a pydantic model: its fields' types, ranges, defaults and
+descriptions are the format. `validate(Model, data, file)` checks parsed JSON
+against it before anything is computed and turns the first problem into a
+`DiffwashError` naming the file and the key (`lib.json: pigments[1].K[3]: must
+be >= 0, got -0.5`); `format_table(Model)` writes the Markdown table the docs
+show, so the docs and the checks cannot drift apart (a test holds them equal).
+
+Numbers are strict: a JSON number, never a bool or a numeric string, finite in
+float32 (the precision diffwash computes in). Coefficients have headroom below
+float32's largest value (`COEFFICIENT_MAX`), so that the products the
+Kubelka-Munk maths forms of them stay finite.
+"""
+
+from __future__ import annotations
+
+import os
+import types
+import typing
+from typing import Annotated, Any, Literal
+
+import annotated_types as at
+import pydantic
+import pydantic.fields
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+
+from ._errors import DiffwashError
+from ._io import FLOAT32_MAX
+
+__all__ = ["validate", "format_table", "LibraryFile", "COEFFICIENT_MAX", "GAMMA_MAX", "WEIGHT_RANGE", "name_key"]
+
+#: The largest K or S (per unit thickness) a file may hold: products of two stay far inside float32.
+COEFFICIENT_MAX = 1e12
+#: The largest amount-law exponent accepted (thickness = (amount / reference)^gamma).
+GAMMA_MAX = 10.0
+#: The range of a mixing weight (only ratios matter; a fit keeps their geometric mean at 1).
+WEIGHT_RANGE = (1e-6, 1e6)
+#: Reflectance above this is not a reflectance (a table in percent).
+REFLECTANCE_MAX = 2.0
+#: The smallest positive normal float32: a reference amount or weight below it is lost in float32.
+FLOAT32_TINY = float.fromhex("0x1p-126")
+
+
+def _float32(v: float) -> float:
+    if not abs(v) <= FLOAT32_MAX:
+        raise ValueError(f"{v:g} is out of float32 range (magnitude at most {FLOAT32_MAX:.4g}), which diffwash computes in")
+    return v
+
+
+#: A finite JSON number (ints taken as numbers; bools, strings, NaN and infinity refused) that float32 holds.
+Number = Annotated[float, pydantic.Strict(), pydantic.AllowInfNan(False), AfterValidator(_float32)]
+Coefficient = Annotated[Number, Field(ge=0, le=COEFFICIENT_MAX)]
+Reflectance = Annotated[Number, Field(ge=0, le=REFLECTANCE_MAX)]
+Text = Annotated[str, pydantic.Strict(), Field(min_length=1)]
+
+
+def name_key(name: str) -> str:
+    """A name as compared: case and runs of spaces ignored (`"Cadmium  red "` is `"cadmium red"`)."""
+    return " ".join(name.casefold().split())
+
+
+class _Part(BaseModel):
+    """An object of a file: unknown keys are refused (a typo must not be silently ignored)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class AmountLaw(_Part):
+    """A pigment's law from an amount of paint to its layer's thickness, `t = (amount / reference)^gamma`."""
+
+    kind: Literal["power"] = Field("power", description="the law's form; only `power`")
+    reference: Annotated[Number, Field(gt=0, ge=FLOAT32_TINY)] = Field(
+        0.05, description="the amount of thickness 1 (the table's unit: mL on the sample's area, or coats)")
+    gamma: Annotated[Number, Field(gt=0, le=GAMMA_MAX)] = Field(
+        1.0, description="the exponent: 1 is thickness proportional to amount")
+
+
+class Pigment(BaseModel):
+    """One pigment of a library (keys other than these are kept for other tools and ignored)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    name: Text = Field(description="unique ignoring case and spaces; no `+` (it joins a mixture's names)")
+    K: list[Coefficient] = Field(description="absorption per unit thickness, one per band")
+    S: list[Coefficient] = Field(description="scattering per unit thickness, one per band")
+    amount_law: AmountLaw = Field(default_factory=AmountLaw, description="`{kind, reference, gamma}` (below)")
+    mixing_weight: Annotated[Number, Field(ge=WEIGHT_RANGE[0], le=WEIGHT_RANGE[1])] = Field(
+        1.0, description="how much the pigment counts in a mixture (1: Duncan's volume fraction)")
+
+    @pydantic.field_validator("name")
+    @classmethod
+    def _no_plus(cls, v: str) -> str:
+        if not v.strip():
+            raise ValueError("must not be blank")
+        if "+" in v:
+            raise ValueError(f"must not hold '+' (it joins the names of a mixture), got {v!r}")
+        return v
+
+
+class Observation(_Part):
+    """How the library's reflectance is seen: a band grid with its light and observer, or the sRGB channels."""
+
+    bands: Literal["sRGB"] | None = Field(None, description="`\"sRGB\"` for pigments per linear sRGB channel")
+    wavelengths: list[Number] | None = Field(None, description="the band centres in nm, increasing")
+    illuminant: Text = Field("D65", description="colour-science's name of the light")
+    observer: Text = Field("CIE 1931 2 Degree Standard Observer", description="colour-science's colour-matching "
+                           "functions")  # fmt: skip
+    method: Text | None = Field(None, description="`ASTM E308` or `Integration` (default: ASTM E308 where it applies)")
+
+
+class Surface(_Part):
+    """The surface term."""
+
+    k2: Annotated[Number, Field(ge=0, lt=1)] = Field(0.0, description="Saunderson's internal surface reflectance")
+
+
+class LibraryFile(BaseModel):
+    """A mixable library (`diffwash fit-swatch --table` writes it; `diffwash predict` reads it)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    format: Literal["diffwash-library"] = Field(description="`diffwash-library`")
+    version: Literal[1] = Field(1, description="1")
+    observation: Observation = Field(description="the band grid and how it is seen (below)")
+    pigments: list[Pigment] = Field(min_length=1, description="the pigments (below), at least one")
+    grounds: dict[str, list[Reflectance]] = Field(min_length=1, description="ground name -> reflectance per band "
+                                                  "(0..2), at least one")  # fmt: skip
+    surface: Surface = Field(default_factory=Surface, description="`{\"k2\": ...}` (below)")
+    pair_terms: dict[str, Any] | None = Field(None, description="the pair terms of pairs measured mixed "
+                                              "(docs/mixing.md)")  # fmt: skip
+    fit: dict[str, Any] | None = Field(None, description="the fit's record (not read back)")
+
+    @pydantic.model_validator(mode="after")
+    def _consistent(self) -> "LibraryFile":
+        o = self.observation
+        if (o.bands is None) == (o.wavelengths is None):
+            raise _Located("needs either \"wavelengths\" or \"bands\": \"sRGB\"", ("observation",))
+        n = 3 if o.bands else len(o.wavelengths)
+        seen: dict[str, int] = {}
+        for i, p in enumerate(self.pigments):
+            for key in ("K", "S"):
+                if len(getattr(p, key)) != n:
+                    raise _Located(f"must be a list of {n} numbers (one per band), got {len(getattr(p, key))}",
+                                   ("pigments", i, key))  # fmt: skip
+            k = name_key(p.name)
+            if k in seen:
+                raise _Located(f"{p.name.strip()!r} and pigments[{seen[k]}].name {self.pigments[seen[k]].name!r} name "
+                               f"the same pigment (names are compared ignoring case and spaces)", ("pigments", i, "name"))
+            seen[k] = i
+        grounds: dict[str, str] = {}
+        for g, v in self.grounds.items():
+            if len(v) != n:
+                raise _Located(f"must be a list of {n} numbers (one per band), got {len(v)}", ("grounds", g))
+            if not g.strip() or name_key(g) in grounds:
+                raise _Located("names a ground twice (ignoring case and spaces)" if g.strip() else "a ground needs a "
+                               "name", ("grounds", g))  # fmt: skip
+            grounds[name_key(g)] = g
+        return self
+
+
+class _Located(ValueError):
+    """A problem found across fields, with the key it belongs to."""
+
+    def __init__(self, message: str, loc: tuple):
+        super().__init__(message)
+        self.loc = loc
+
+
+def _where(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+_TYPES = {"model_type": "must be an object {...}", "model_attributes_type": "must be an object {...}",
+          "dict_type": "must be an object {...}", "list_type": "must be a list [...]",
+          "float_type": "must be a number", "string_type": "must be text", "missing": "missing key",
+          "extra_forbidden": "unknown key", "finite_number": "must be a finite number"}  # fmt: skip
+
+
+_BOUNDS = {"greater_than": (">", "gt"), "greater_than_equal": (">=", "ge"), "less_than": ("<", "lt"),
+           "less_than_equal": ("<=", "le")}  # fmt: skip
+
+
+def _message(err: dict) -> str:
+    kind = err["type"]
+    got = err.get("input")
+    shown = repr(got)
+    shown = shown if len(shown) <= 60 else shown[:57] + "..."
+    if kind == "missing":
+        return _TYPES[kind]
+    if kind == "float_type" and isinstance(got, int) and not isinstance(got, bool):
+        return f"{shown} is out of float32 range (magnitude at most {FLOAT32_MAX:.4g}), which diffwash computes in"
+    if kind == "too_short":
+        return "must not be empty"
+    if kind in _BOUNDS:
+        sign, key = _BOUNDS[kind]
+        return f"must be {sign} {err['ctx'][key]:g}, got {shown}"
+    if kind in _TYPES:
+        return f"{_TYPES[kind]}, got {shown}"
+    msg = err["msg"].removeprefix("Value error, ")
+    msg = msg.replace("Input should be", "must be").replace("List should have", "must have")
+    return msg if kind == "value_error" else f"{msg}, got {shown}"
+
+
+def validate(model: type[BaseModel], data: Any, file: str | os.PathLike | None = None) -> Any:
+    """`data` (parsed JSON) checked against `model`; the first problem is a `DiffwashError` naming `file` and key."""
+    try:
+        return model.model_validate(data)
+    except _Located as e:
+        raise DiffwashError(str(e), file=file, field=_where(e.loc)) from None
+    except pydantic.ValidationError as e:
+        errors = e.errors(include_url=False)
+        err = errors[0]
+        ctx = err.get("ctx") or {}
+        if isinstance(ctx.get("error"), _Located):
+            raise DiffwashError(str(ctx["error"]), file=file, field=_where(ctx["error"].loc)) from None
+        raise DiffwashError(_message(err), file=file, field=_where(err["loc"]) or None) from None
+
+
+def _type_name(t: Any) -> str:
+    origin = typing.get_origin(t)
+    args = typing.get_args(t)
+    if origin is Annotated:
+        return _type_name(args[0])
+    if origin is Literal:
+        return " or ".join(f"`{a!r}`".replace("'", '"') for a in args)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(_type_name(a) for a in args if a is not type(None))
+    if origin is list:
+        return f"list of {_type_name(args[0])}"
+    if origin is dict:
+        return "object"
+    if isinstance(t, type) and issubclass(t, BaseModel):
+        return "object"
+    return {float: "number", str: "text", int: "integer"}.get(t, getattr(t, "__name__", str(t)))
+
+
+def _bounds(t: Any, metadata: list) -> str:
+    items = list(metadata)
+    while typing.get_origin(t) is Annotated:
+        t, *more = typing.get_args(t)
+        items += more
+    if typing.get_origin(t) is list:
+        return _bounds(typing.get_args(t)[0], [])
+    items = [x for m in items for x in (m.metadata if isinstance(m, pydantic.fields.FieldInfo) else [m])]
+    out = []
+    for m in items:
+        for k in ("gt", "ge", "lt", "le"):
+            v = getattr(m, k, None)
+            if v is not None and isinstance(m, (at.Gt, at.Ge, at.Lt, at.Le)):
+                if k == "ge" and v == FLOAT32_TINY:
+                    continue
+                sign = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}[k]
+                out.append(f"{sign} {v:g}")
+        if isinstance(m, at.MinLen) and m.min_length:
+            out.append("not empty" if t is str else f"at least {m.min_length}")
+    return ", ".join(out)
+
+
+def format_table(model: type[BaseModel]) -> str:
+    """The Markdown table of `model`'s keys: key, type, range, default, meaning."""
+    rows = ["| key | type | range | default | meaning |", "|---|---|---|---|---|"]
+    for name, f in model.model_fields.items():
+        default = "required" if f.is_required() else ("`{}`" if f.default_factory is not None else
+                                                      "none" if f.default is None else f"`{f.default!r}`")  # fmt: skip
+        default = default.replace("'", '"')
+        bounds = _bounds(f.annotation, f.metadata) or "-"
+        rows.append(f"| `{name}` | {_type_name(f.annotation)} | {bounds} | {default} | {f.description or ''} |")
+    return "\n".join(rows)
+

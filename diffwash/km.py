@@ -97,25 +97,32 @@ def layer(
     if xp is JAX:
         K, S, x = jnp.broadcast_arrays(K, S, x)
     x = xp.where(x < 0, 0, x)  # not maximum: its gradient at 0 is 1/2
-    q = K * (K + 2 * S)  # beta^2
-    z = q * x * x  # (beta x)^2
+    # (beta x)^2 = K (K + 2 S) x^2 <= ((K + S) x)^2: computed only where that cannot overflow float32 (elsewhere
+    # beta x is large: the exponential branch), so that neither it nor its gradient is ever infinite.
+    ok = (K + S) * x < 1e15
+    Kq, Sq, xq = xp.where(ok, K, 0), xp.where(ok, S, 0), xp.where(ok, x, 0)
+    z = xp.where(ok, (Kq * xq) * ((Kq + 2 * Sq) * xq), 2)  # each factor < 2e15
     small = z < 1
     # Series branch (beta x < 1): unscaled cosh and sinh/beta; exact at beta = 0.
     z_s = xp.where(small, z, 0)
     ch_s = _horner(_CH_COEFFS, z_s)
-    sh_s = x * _horner(_SH_COEFFS, z_s)
-    # Exponential branch (beta x >= 1): both scaled by exp(-beta x), never overflow.
-    beta = xp.sqrt(xp.where(small, 1, q))
-    bx = xp.where(small, 1, beta * x)
+    sh_s = xq * _horner(_SH_COEFFS, z_s)
+    denom_s = (S + K) * sh_s + ch_s  # >= 1
+    # Exponential branch (beta x >= 1), in k = K / (K + S), s = S / (K + S), b = beta / (K + S) (in [0, 1]) and
+    # r = b / (1 - exp(-2 beta x)), scaled by exp(-beta x): no overflow at any optical depth float32 holds, and R
+    # tends to the masstone s / (1 + b) as x grows (to 1 for a pure scatterer, b = 0, where r = 1 / (2 (K + S) x)).
+    ks = xp.where(small, 1, K + S)
+    k, s = K / ks, S / ks
+    kk = xp.where(small, 1, k * (k + 2 * s))
+    b = xp.where(kk > 0, xp.sqrt(xp.where(kk > 0, kk, 1)), 0)
+    bx = xp.where(small, 1, b * ks * x)
     e1 = xp.exp(-bx)
-    e2 = e1 * e1
-    ch_l = (1 + e2) / 2
-    sh_l = -xp.expm1(-2 * bx) / (2 * beta)
-    ch = xp.where(small, ch_s, ch_l)
-    sh = xp.where(small, sh_s, sh_l)
-    scale = xp.where(small, 1, e1)
-    denom = (S + K) * sh + ch  # >= 1/2
-    return S * sh / denom, scale / denom
+    om = -xp.expm1(-2 * bx)  # 1 - exp(-2 beta x)
+    r = xp.where(b > 0, b / xp.where(om > 0, om, 1), 1 / xp.where(small, 2, 2 * ks * x))
+    denom_l = 1 + r * (1 + e1 * e1)  # >= 1
+    R = xp.where(small, S * sh_s / denom_s, s / denom_l)
+    T = xp.where(small, 1 / denom_s, 2 * r * e1 / denom_l)
+    return R, T
 
 
 def _safe_div(num, den):
@@ -213,8 +220,13 @@ def infinite_reflectance(K: Float[ArrayLike, "*#b"], S: Float[ArrayLike, "*#b"])
     """
     K, S = _as_float(K, S)
     tiny = jnp.finfo(K.dtype).tiny
-    beta = jnp.sqrt(jnp.maximum(K * (K + 2 * S), tiny))
-    return _safe_div(S, S + K + beta)
+    # in k = K / (K + S), s = S / (K + S): K (K + 2S) would overflow float32 for K past about 1e19
+    ks = K + S
+    ok = ks > 0
+    d = jnp.where(ok, ks, 1)
+    k, s = K / d, S / d
+    beta = jnp.sqrt(jnp.maximum(k * (k + 2 * s), tiny))
+    return jnp.where(ok, s / (1 + beta), 0)
 
 
 def invert_black_white(

@@ -41,6 +41,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -238,7 +239,7 @@ def parse_mixture(pigment: str, amount: str, *, path: Any = None, line: int | No
     names = tuple(n.strip() for n in pigment.split("+"))
     if any(not n for n in names):
         raise _fail(f"empty pigment name in {pigment.strip()!r}", path, line, "pigment")
-    texts = [t.strip() for t in amount.split("+")]
+    texts = [t.strip() for t in re.split(r"(?<![eE])\+", amount)]  # not the + of an exponent (1e+30)
     if len(texts) != len(names):
         raise _fail(f"{len(names)} pigment{'s' if len(names) > 1 else ''} ({pigment.strip()}) but {len(texts)} "
                     f"amount{'s' if len(texts) > 1 else ''} ({amount.strip()})", path, line, "amount")  # fmt: skip

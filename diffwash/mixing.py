@@ -46,6 +46,7 @@ support (and which they do not): docs/mixing.md.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import equinox as eqx
@@ -71,6 +72,12 @@ __all__ = [
 #: Amount at which the default `AmountLaw` gives thickness 1 (mL on the NTU samples' area):
 #: K and S are "per layer of this much paint", and the exponent barely moves them.
 REFERENCE_AMOUNT = 0.05
+#: The thickest layer an amount law gives (thickness 1 is the reference amount's): far past where any layer of
+#: K + S >= 1e-12 is its masstone, and small enough that K and S (at most 1e12 in a file) times it stay finite
+#: in float32, so that an amount of 1e30 gives the masstone, not NaN or black.
+THICKNESS_MAX = 1e18
+#: The largest optical depth Kx or Sx a layer gets (K, S <= 1e12 times `THICKNESS_MAX`).
+OPTICAL_DEPTH_MAX = 1e30
 
 
 def _float(x: ArrayLike) -> Array:
@@ -84,7 +91,8 @@ class AmountLaw(eqx.Module):
     pigment); `reference` ($a_0$, the amount of thickness 1) is static. `gamma =
     1` is thickness proportional to amount; `gamma < 1` a wash that thickens
     less than the paint put on it (absorbent paper, pigment settling into the
-    fibres). `t(0) = 0` with a finite (zero) gradient.
+    fibres). `t(0) = 0` with a finite (zero) gradient; `t` is capped at
+    `THICKNESS_MAX`, past any layer's masstone, so that huge amounts stay finite.
 
     **Fields:**
 
@@ -101,7 +109,7 @@ class AmountLaw(eqx.Module):
         g = jnp.asarray(self.gamma, a.dtype)
         ok = a > 0
         x = jnp.where(ok, a, 1) / self.reference
-        return jnp.where(ok, jnp.exp(g * jnp.log(x)), 0)
+        return jnp.where(ok, jnp.exp(jnp.minimum(g * jnp.log(x), math.log(THICKNESS_MAX))), 0)
 
     def to_dict(self) -> dict[str, Any]:
         g = np.asarray(self.gamma, np.float64)
@@ -121,6 +129,11 @@ def concentrations(amounts: Float[ArrayLike, "*n p"], weights: Float[ArrayLike, 
     (with zero gradient) where a layer holds nothing.
     """
     a = _float(amounts)
+    # relative to the layer's largest amount: sums of amounts near float32's largest would overflow (brought
+    # below 2^64 first: XLA divides through the reciprocal, which float32 loses for a divisor above about 1e38)
+    top = jnp.max(a, axis=-1, keepdims=True)
+    a, top = jnp.where(top > 2.0**64, a * 2.0**-64, a), jnp.where(top > 2.0**64, top * 2.0**-64, top)
+    a = jnp.where(top > 0, a / jnp.where(top > 0, top, 1), 0)
     wa = a if weights is None else a * jnp.asarray(weights, a.dtype)
     total = jnp.sum(wa, axis=-1, keepdims=True)
     ok = total > 0
@@ -176,7 +189,8 @@ class PairTerms(eqx.Module):
         inter = 4 * v[..., i] * v[..., j]  # (..., Q)
         total = jnp.sum(amounts, axis=-1, keepdims=True)
         ok = total > 0
-        lt = jnp.where(ok, jnp.log(jnp.where(ok, total, 1) / reference), 0)
+        cap = math.log(THICKNESS_MAX)  # the amount law's cap: past it a layer is its masstone
+        lt = jnp.where(ok, jnp.clip(jnp.log(jnp.where(ok, total, 1) / reference), -cap, cap), 0)
         phi = jnp.asarray(self.basis(), amounts.dtype)
         ck = (inter @ self.k_bumps) @ phi.T + (inter * lt) @ self.k_amount[:, None]
         cs = (inter @ self.s_bumps) @ phi.T + (inter * lt) @ self.s_amount[:, None]
@@ -230,7 +244,8 @@ def optical_depths(
     Kx, Sx = jnp.einsum("...p,...pb->...b", u, K), jnp.einsum("...p,...pb->...b", u, S)
     if pairs is not None:
         fk, fs = pairs.scales(a, law.reference)
-        Kx, Sx = Kx * fk, Sx * fs
+        # capped where a pair term's growth with the amount is extrapolated far past the data: finite in float32
+        Kx, Sx = jnp.minimum(Kx * fk, OPTICAL_DEPTH_MAX), jnp.minimum(Sx * fs, OPTICAL_DEPTH_MAX)
     return Kx, Sx
 
 

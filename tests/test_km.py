@@ -91,6 +91,28 @@ def test_very_thick_layer_is_infinite_reflectance(dtype):
     )
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("x", [1e15, 1e30, 3e38])
+def test_a_layer_at_any_optical_depth_float32_holds_is_its_masstone(dtype, x):
+    """(beta x)^2 overflows float32 past beta x ~ 1e19: the layer must still be its masstone, not black or NaN,
+    with finite gradients (issue 23: an amount of 1e30 predicted black)."""
+    K = np.array([1e28, 2.0, 0.5, 1e-3, 0.0, 1e12, 0.0], dtype)
+    S = np.array([3e27, 1.0, 0.0, 2.0, 1.0, 1e-6, 0.0], dtype)
+    R, T = km.layer(K, S, dtype(x))
+    assert np.all(np.isfinite(R)) and np.all(np.isfinite(T))
+    expected = np.array(km.infinite_reflectance(K, S), np.float64)
+    expected[-1] = 0.0  # no paint at all: R = 0, T = 1 at any thickness
+    np.testing.assert_allclose(R, expected, rtol=1e-5, atol=1e-30)
+    assert np.all(T[:-1] <= 1.5 / x)  # opaque (a pure scatterer: T = 1 / (1 + S x))
+    for arg in range(3):
+        g = jax.grad(lambda *a: jnp.sum(km.layer(*a)[0] + km.layer(*a)[1]), argnums=arg)(K, S, dtype(x))
+        assert np.all(np.isfinite(g)), (arg, g)
+    # At x = 0 the largest coefficients are still no paint.
+    R0, T0 = km.layer(K, S, dtype(0))
+    np.testing.assert_array_equal(R0, 0)
+    np.testing.assert_array_equal(T0, 1)
+
+
 def test_infinite_reflectance_edges():
     assert float(km.infinite_reflectance(0.0, 1.0)) == 1.0
     assert float(km.infinite_reflectance(1.0, 0.0)) == 0.0

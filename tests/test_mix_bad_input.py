@@ -276,3 +276,22 @@ def test_mixture_card_options_are_named(cli, tmp_path, args, needles):
     _refused(result, *needles)
     assert "--patches:" not in result[1]  # the option that was wrong, not another
     assert not (tmp_path / "card.png").exists()
+
+
+@pytest.mark.parametrize("amount", ["1e30", "1e+30", "3e38"])
+def test_a_thick_layer_at_a_huge_amount_is_its_masstone(cli, tmp_path, amount):
+    """Any amount float32 holds: the masstone R = S / (S + K + sqrt(K (K + 2S))), not black, not NaN."""
+    import numpy as np
+
+    from diffwash import km
+    from diffwash.library import load_library
+
+    _library(tmp_path)
+    (tmp_path / "q.csv").write_text(f"pigment,amount,ground\nP1,{amount},paper\nP1+P1,{amount}+{amount},paper\n")
+    status, err = cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv")
+    assert status == 0, err
+    lib = load_library(tmp_path / "lib.json")
+    masstone = np.asarray(km.infinite_reflectance(lib.palette.K[0], lib.palette.S[0]))
+    rows = [line.split(",") for line in (tmp_path / "p.csv").read_text().splitlines()[1:]]
+    for row in rows:
+        np.testing.assert_allclose(np.asarray(row[-4:], float), masstone, rtol=1e-5)

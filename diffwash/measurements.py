@@ -52,11 +52,16 @@ from . import colorimetry, spectral
 from ._errors import DiffwashError
 from ._io import check_float32, open_input
 
-__all__ = ["Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture", "parse_stack", "format_stack",
-           "split_layers", "refuse_colliding_names"]
+__all__ = [
+    "Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture", "parse_stack", "format_stack",
+    "split_layers", "refuse_colliding_names", "refuse_absurd_amounts",
+]  # fmt: skip
 
 #: Reflectance above this is taken for a table in percent, not a brightener's glow.
 MAX_REFLECTANCE = 2.0
+#: An amount more than this many times the table's median amount (or less than its reciprocal) is refused: a typo
+#: (1e30 for 0.03) would dominate the fit's loss; real tables span well under a hundredfold.
+AMOUNT_SPAN = 1e4
 
 
 def _fail(msg: str, path: Any, line: int | None = None, column: str | None = None) -> DiffwashError:
@@ -262,6 +267,20 @@ def _number(text: str, path: Any, line: int, column: str) -> float:
     return check_float32(v, file=path, field=f"line {line}: {column}" if line is not None else column)
 
 
+def refuse_absurd_amounts(amounts: Any, lines: Any, path: Any) -> None:
+    """Refuse a positive amount more than `AMOUNT_SPAN` times the table's median positive amount, or less than
+    its reciprocal, naming the line (per row a number, or a tuple for a mixture)."""
+    rows = [(int(line), a) for row, line in zip(amounts, lines) for a in np.atleast_1d(row) if a > 0]
+    if len(rows) < 3:
+        return
+    median = float(np.median([a for _, a in rows]))
+    for line, a in rows:
+        if not median / AMOUNT_SPAN <= a <= median * AMOUNT_SPAN:
+            raise _fail(f"{a:g} is {a / median:.3g} times the table's median amount {median:g}: a typo? (amounts "
+                        f"beyond {AMOUNT_SPAN:g} times the median, either way, are refused: one would dominate the fit)",
+                        path, line, "amount")  # fmt: skip
+
+
 def refuse_colliding_names(names: Any, lines: Any, path: Any) -> None:
     """Refuse pigment names (per row, tuples) that differ as written but not ignoring case and runs of spaces
     (`P1` and `p1`, `P 1` and `P  1`): a library could not tell them apart."""
@@ -363,6 +382,7 @@ def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measu
     if not pigs:
         raise _fail("has no rows of measurements", path)
     refuse_colliding_names(pigs, lines, path)
+    refuse_absurd_amounts(amts, lines, path)
     vals = np.asarray(vals, np.float64)
     lines = np.asarray(lines)
     if grid is None:

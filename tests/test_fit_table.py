@@ -134,7 +134,7 @@ def test_read_table_scales_grounds_and_clips(tmp_path):
         ("pigment,amount,ground,r,g,b\nx,1,paper,1,2,3\n", "line 2: ground", "no 'paper' row"),
         ("pigment,amount,ground,r,g,b\npaper,0,paper,240,240,235\nx,1,black,1,2,3\n", "line 3: ground", "no 'black' row"),
         ("pigment,amount,ground,r,g,b\npaper,0,paper,255,240,235\nx,1,paper,1,2,3\n", "line 2", "clipped"),
-        ("pigment,amount,ground,r,g,b\npaper,0,paper,240,240,235\nx,1,paper,1,2,300\n", "line 3", "0-255"),
+        ("pigment,amount,ground,r,g,b\npaper,0,paper,240,240,235\nx,1,paper,1,2,300\n", "line 3: b", "0-255"),
         ("pigment,amount,ground,r,g,b\npaper,0,paper,240,240,235\nx,1,paper,1,two,3\n", "line 3: g", "not a number"),
     ],
 )

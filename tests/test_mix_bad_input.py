@@ -236,6 +236,10 @@ RGB_HEAD = "pigment,amount,ground,r,g,b\n"
          ("line 4: pigment", "'P  1' and 'P 1' (line 3)")),
         (RGB_HEAD + "paper,0,paper,240,240,235\nP1,0.02,paper,200,40,40\np1,0.04,paper,150,20,20\n",
          ("line 4: pigment", "'p1' and 'P1' (line 3)")),
+        (HEAD + PAPER + "P1,0.02,paper,0.2,0.1,0.5,0.6\nP1,0.04,paper,0.1,0.1,0.4,0.5\nP1,1e30,paper,0.1,0.1,0.3,0.4\n",
+         ("line 5: amount", "1e+30 is", "median amount 0.04")),
+        (RGB_HEAD + "paper,0,paper,240,240,235\nP1,0.02,paper,200,40,40\nP1,0.04,paper,150,20,20\n"
+         "P1,1e-9,paper,239,239,234\n", ("line 5: amount", "1e-09 is", "median amount 0.02")),
         (RGB_HEAD + "paper,0,paper,0.94,0.94,0.92\nP1,0.02,paper,0.78,0.16,0.16\nP1,0.04,paper,0.6,1.5,0.08\n",
          ("line 4: g", "1.5 is above 1", "typo")),
         (RGB_HEAD + "paper,0,paper,0.94,0.94,0.92\nP1+P2,0.02+0.01,paper,0.5,0.16,0.16\nP2,0.04,paper,0.6,0.4,1.2\n",

@@ -45,7 +45,7 @@ import numpy as np
 from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import check_float32, open_input
-from ..measurements import refuse_colliding_names, rgb_scale
+from ..measurements import refuse_absurd_amounts, refuse_colliding_names, rgb_scale
 from ..pigments import Pigment
 from ..pigments import save as save_pigments
 from ._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
@@ -178,6 +178,7 @@ def read_table(path: str | os.PathLike, *, linear: bool = False) -> MeasurementT
     if not pig:
         raise _fail("has no rows of measurements", path)
     refuse_colliding_names(pig, lines, path)
+    refuse_absurd_amounts(amt, lines, path)
     vals = np.asarray(vals, np.float64)
     top = rgb_scale(vals, path, lines)
     return _make_table(np.asarray(pig), np.asarray(amt), np.asarray(gnd), vals / top, linear=linear,

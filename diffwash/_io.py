@@ -641,12 +641,27 @@ def _read_pillow(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
                 alpha = "A" in bands or "transparency" in im.info
                 target = ("LA" if alpha else "L") if grey else ("RGBA" if alpha else "RGB")
                 a = np.asarray(im.convert(target), np.float64) / 255.0
-    except (Image.UnidentifiedImageError, OSError, ValueError, SyntaxError, EOFError, struct.error, IndexError,
-            TypeError, KeyError, ZeroDivisionError, MemoryError) as e:  # fmt: skip
+    except (Image.UnidentifiedImageError, KeyError) as e:  # KeyError: a format Pillow identifies but is not allowed
+        if not isinstance(e, KeyError) or not _known_image(path):
+            raise DiffwashError("is not an image diffwash reads (PNG, JPEG, TIFF, WebP or BMP)", file=path) from None
+        raise DiffwashError(f"not a readable image: {e}".splitlines()[0], file=path) from None
+    except (OSError, ValueError, SyntaxError, EOFError, struct.error, IndexError,
+            TypeError, ZeroDivisionError, MemoryError) as e:  # fmt: skip
         raise DiffwashError(f"not a readable image: {e}".splitlines()[0], file=path) from None
     if a.ndim == 2:
         a = a[..., None]
     return a, bits, grey
+
+
+#: The first bytes of the image formats read: a file starting otherwise is not one of them.
+_MAGIC = (b"\xff\xd8\xff", b"II*\x00", b"MM\x00*", b"BM", b"RIFF", _PNG_SIGNATURE)
+
+
+def _known_image(path: Path) -> bool:
+    """Whether the file starts like a JPEG, TIFF, BMP, WebP (RIFF) or PNG."""
+    with contextlib.suppress(OSError), open(path, "rb") as f:
+        return f.read(8).startswith(_MAGIC)
+    return False
 
 
 def _orient(a: np.ndarray, orientation: int) -> np.ndarray:

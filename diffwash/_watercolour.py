@@ -236,6 +236,11 @@ def parse_watercolour(
         if s["direction"] not in ("min", "max"):
             raise _fail(f"must be \"min\" or \"max\", got {s['direction']!r}", file, "watercolour.strokes.direction")
         length = _amount(s, "strokes", "length", file, positive=True)
+        size = float(np.linalg.norm(np.ptp(vertices, axis=0)))  # the mesh's bounding-box diagonal
+        if length > 10 * size:
+            raise _fail(f"must be at most 10 times the mesh's size ({size:.4g}, its bounding box's diagonal: "
+                        f"a stroke longer than the object traces nothing), got {length:g}", file,
+                        "watercolour.strokes.length")  # fmt: skip
         strokes = wl.stroke_field(vertices, np.asarray(mesh.faces), np.asarray(mesh.normals), direction=s["direction"],
                                   length=length, seed=_seed(s, "strokes", file))  # fmt: skip
     tam, scale = None, WATERCOLOUR_KEYS["hatching"]["scale"]

@@ -565,3 +565,15 @@ def test_the_file_size_limit_is_checked_before_reading_and_configurable(cli, tmp
 def test_a_negative_seed_is_blamed_on_the_seed(cli, tmp_path):
     refused(cli("swatch-card", "Cadmium Red", "--seed", "-1", "-o", "card.png"), "--seed", ">= 0")
     assert not (tmp_path / "card.png").exists()
+
+
+@pytest.mark.parametrize("look, needles", [
+    ({"strokes": {"length": 1e30}}, ("watercolour.strokes.length", "at most 10 times the mesh's size", "1e+30")),
+    ({"paper": {"image": "notes.png"}}, ("watercolour.paper.image", "notes.png", "is not an image diffwash reads")),
+])  # fmt: skip
+def test_the_looks_keys_are_refused_before_rendering(cli, tmp_path, look, needles):
+    (tmp_path / "notes.png").write_text("a text file, not an image\n")
+    write_scene(tmp_path, watercolour=look)
+    before = snapshot(tmp_path)
+    refused(cli("render", "scene.json", "-o", "x.png"), "scene.json", *needles)
+    assert snapshot(tmp_path) == before

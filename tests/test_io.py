@@ -51,7 +51,7 @@ def test_unreadable_images_are_clear_errors(tmp_path):
     with pytest.raises(DiffwashError, match=r"x\.png: not a readable PNG"):
         read_image(tmp_path / "x.png")
     (tmp_path / "y.jpg").write_text("hello")
-    with pytest.raises(DiffwashError, match=r"y\.jpg: not a readable image"):
+    with pytest.raises(DiffwashError, match=r"y\.jpg: is not an image diffwash reads"):
         read_image(tmp_path / "y.jpg")
     with pytest.raises(DiffwashError, match=r"z\.png: no such image file"):
         read_image(tmp_path / "z.png")

@@ -18,7 +18,8 @@ inputs per reader in CI.
 
 Readers (their public functions): scenes (`diffwash.load_scene`), swatch-card
 layouts (`diffwash.fit.read_layout`), pigment files (`diffwash.pigments.load`),
-pigment libraries (`diffwash.pigments.library`), measurement tables
+pigment libraries (`diffwash.pigments.library`), mixable libraries (`diffwash.library.load_library`, then a
+prediction that must be finite), measurement tables
 (`diffwash.fit.read_table`), images (`diffwash._io.read_image`) and meshes
 (`diffwash.load_mesh`: PLY, OBJ, STL, OFF, GLB through trimesh).
 
@@ -195,6 +196,39 @@ def pigment_docs(draw: Any) -> dict:
 
 
 library_docs = st.lists(pigment_docs(), min_size=1, max_size=5).map(lambda ps: {"pigments": ps})
+
+#: Numbers at and past the edges of the mixable library's declared ranges (diffwash/_schema.py), and non-numbers.
+_EDGES = (0, -0.0, -1, 1e-45, 1e-6, 0.999999, 1, 10, 10.5, 1e6, 1e12, 1.1e12, 1e30, 3.4e38, 1e39, 10**400, math.nan,
+          math.inf, "1", True, None, [1], {})  # fmt: skip
+
+
+def _edge_or(draw: Any, lo: float, hi: float) -> Any:
+    return draw(st.sampled_from(_EDGES)) if draw(st.integers(0, 3)) == 0 else draw(st.floats(lo, hi))
+
+
+@st.composite
+def mixable_library_docs(draw: Any) -> dict:
+    """A mixable library (`"format": "diffwash-library"`) on a small grid, numbers now and then at the edges."""
+    n = draw(st.integers(1, 4))
+    waves = [400 + 100 * i for i in range(n)]
+    pigments = []
+    for _ in range(draw(st.integers(1, 3))):
+        pigments.append({"name": draw(st.sampled_from(("P1", "p1", "P 1", "P  1", "P2", "A+B", "", " "))),
+                         "K": [_edge_or(draw, 0, 1e4) for _ in range(n)], "S": [_edge_or(draw, 0, 1e4) for _ in range(n)],
+                         "amount_law": {"kind": "power", "reference": _edge_or(draw, 1e-3, 1),
+                                        "gamma": _edge_or(draw, 0.1, 5)},
+                         "mixing_weight": _edge_or(draw, 0.01, 100)})  # fmt: skip
+    return {"format": "diffwash-library", "version": 1, "observation": {"wavelengths": waves}, "pigments": pigments,
+            "grounds": {"paper": [_edge_or(draw, 0, 1) for _ in range(n)]}, "surface": {"k2": _edge_or(draw, 0, 0.99)}}
+
+
+def _load_mixable(path: Path, amount: float) -> Any:
+    """Load a mixable library and predict its first pigment at `amount`: the prediction must be finite."""
+    lib = diffwash.library.load_library(path)
+    pred = lib.predict([lib.names[0]], [[amount]])
+    if not np.all(np.isfinite(pred.lab)):
+        raise AssertionError(f"non-finite prediction {pred.lab.tolist()} at amount {amount:g}")
+    return lib
 
 # ---------------------------------------------------------------------------------------------------------------
 # Scenes: they name a mesh and pigment files in the fuzzing folder (written once by `prepare`).
@@ -520,6 +554,8 @@ READERS: dict[str, Reader] = {
         Reader("pigment", json_file(st.one_of(pigment_docs(), library_docs)), _load_pigment, ".json",
                st.sampled_from([None, "Rose", "cadmium red"])),  # fmt: skip
         Reader("library", json_file(library_docs), lambda p, o: diffwash.pigments.library(p), ".json"),
+        Reader("mixable", json_file(mixable_library_docs()), _load_mixable, ".json",
+               st.sampled_from([0.0, 1e-30, 0.05, 1.0, 1e30, 3e38])),  # fmt: skip
         Reader("table", table_files(), lambda p, linear: diffwash.fit.read_table(p, linear=linear), ".csv",
                st.booleans()),  # fmt: skip
         Reader("measurements", mixture_table_files(),

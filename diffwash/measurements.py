@@ -7,7 +7,8 @@ and goes on with either
   on that grid (0..1; values a little above 1, from fluorescent brighteners,
   are data), or
 - `r,g,b`: display sRGB, 8-bit (0-255) or 0-1 floats (the whole file on one
-  scale, 0-1 when no value exceeds 1). Values at the ends of the range are
+  scale, 0-1 when no value exceeds 1; mostly 0-1 fractions with a value above
+  1 is refused as a typo). Values at the ends of the range are
   clipped by the gamut: bounds, not measurements.
 
 ```
@@ -32,6 +33,10 @@ Other columns (neither a number nor `r`, `g`, `b`) are ignored. A *query* table
 
 The single-pigment RGB tables of `diffwash.fit.read_table` are the special case
 `r,g,b` with grounds `paper` and `black` (that reader fits them pigment by pigment).
+
+Refused too, naming the line: amounts more than `AMOUNT_SPAN` times the
+table's median amount (or less than its reciprocal), numbers float32 cannot
+hold, and pigment names that differ only in case or spacing.
 
 Every error names the file, the line and the column in one line.
 """

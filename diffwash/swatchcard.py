@@ -371,7 +371,7 @@ def make_mixture_card(
     per_coat = float(library.palette.law.reference if amount_per_coat is None else amount_per_coat)
     if not (np.isfinite(per_coat) and per_coat > 0):
         raise ValueError(f"amount_per_coat must be > 0, got {amount_per_coat!r}")
-    most = per_coat * max(sum(a) for _, a in specs)
+    most = per_coat * max(sum(spec[1]) for spec in specs)
     if not most <= FLOAT32_MAX:
         raise ValueError(f"amount_per_coat {per_coat:g} makes a patch of {most:g}, out of float32 range (magnitude at "
                          f"most {FLOAT32_MAX:.4g}), which diffwash computes in")  # fmt: skip

@@ -25,7 +25,13 @@ The file is JSON:
  "grounds": {"paper": [...]}, "surface": {"k2": 0.0}, "fit": {...}}
 ```
 
-`"observation": {"bands": "sRGB"}` for a library per linear sRGB channel.
+`"observation": {"bands": "sRGB"}` for a library per linear sRGB channel: what the fits of three-channel data
+write (`fit-swatch PHOTO`, `fit-swatch --table` of single paints; `library_from_pigments`), their pigments also
+carrying `"density"`, `"staining"` and `"granularity"`, so the file is a pigment file too (`diffwash.pigments`:
+K and S per unit thickness, thickness 1 being the law's reference amount). A pigment file of the older kind
+(`{"name": ..., "K": [r, g, b], "S": [...]}` or `{"pigments": [...]}`, without `"format"`) loads as such a
+library: amount law `t(a) = a^gamma` (gamma from its fit record, else 1), grounds from its fit record
+(`"paper"`, `"black"`), else the shading model's default paper.
 """
 
 from __future__ import annotations
@@ -41,12 +47,13 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from . import _schema, colorimetry, mixing, spectral
+from . import _schema, colorimetry, mixing, pigments, spectral
 from ._errors import DiffwashError
 from ._io import atomic_path, finite_number, read_json, write_json
 from .measurements import Measurements, Queries, parse_stack, read_queries
+from .shading import DEFAULT_PAPER
 
-__all__ = ["Library", "Prediction", "load_library", "predict"]
+__all__ = ["Library", "Prediction", "load_library", "library_from_pigments", "predict"]
 
 FORMAT = "diffwash-library"
 VERSION = 1
@@ -92,6 +99,8 @@ class Library:
     - `observation`: the `diffwash.spectral.Observation` of those bands.
     - `k2`: Saunderson's internal surface reflectance (0: none).
     - `fit`: the fit's record (model terms, per-row residuals, summary), JSON-ready, or None.
+    - `extras`: per pigment, the renderer's other properties (`density`, `staining`, `granularity`) written
+      with it, or None.
     """
 
     palette: mixing.Palette
@@ -99,6 +108,7 @@ class Library:
     observation: spectral.Observation
     k2: float = 0.0
     fit: dict[str, Any] | None = field(default=None, repr=False)
+    extras: tuple[dict[str, float], ...] | None = field(default=None, repr=False)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -175,7 +185,8 @@ class Library:
         gam = np.asarray(p.law.gamma, np.float64)
         pigs = [{"name": n, "K": np.asarray(p.K[i], np.float64).tolist(), "S": np.asarray(p.S[i], np.float64).tolist(),
                  "amount_law": {"kind": "power", "reference": p.law.reference, "gamma": float(gam[i])},
-                 "mixing_weight": float(p.weights[i])} for i, n in enumerate(p.names)]  # fmt: skip
+                 "mixing_weight": float(p.weights[i]), **(self.extras[i] if self.extras else {})}
+                for i, n in enumerate(p.names)]  # fmt: skip
         out = {"format": FORMAT, "version": VERSION, "observation": self.observation.describe(), "pigments": pigs,
                "grounds": {k: np.asarray(v, np.float64).tolist() for k, v in self.grounds.items()},
                "surface": {"k2": float(self.k2)}}  # fmt: skip
@@ -289,7 +300,9 @@ def _pair_terms(d: Any, names: list[str], obs: spectral.Observation, path: Any) 
 def library_from_dict(d: Any, path: Any = None) -> Library:
     """A `Library` from its JSON object, checked against its declaration (`diffwash._schema.LibraryFile`: types,
     ranges, float32, names colliding ignoring case and spaces) before anything is computed; one-line errors name
-    the file and the key."""
+    the file and the key. A pigment file of the older kind (no `"format"`) is converted on load."""
+    if isinstance(d, dict) and "format" not in d and ("K" in d or isinstance(d.get("pigments"), list)):
+        return _from_pigment_file(d, path)  # an older pigment file: converted on load
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise DiffwashError(f"is not a {FORMAT} file (no \"format\": \"{FORMAT}\")", file=path)
     spec = _schema.validate(_schema.LibraryFile, d, path)
@@ -319,7 +332,79 @@ def library_from_dict(d: Any, path: Any = None) -> Library:
         palette = eqx.tree_at(lambda p: p.pairs, palette, _pair_terms(d["pair_terms"], names, obs, path),
                               is_leaf=lambda x: x is None)  # fmt: skip
     grounds = {k.lower(): np.asarray(v, np.float64) for k, v in spec.grounds.items()}
-    return Library(palette=palette, grounds=grounds, observation=obs, k2=spec.surface.k2, fit=d.get("fit"))
+    extras = [_extras(p, path, f"pigments[{i}]") for i, p in enumerate(d["pigments"])]
+    return Library(palette=palette, grounds=grounds, observation=obs, k2=spec.surface.k2, fit=d.get("fit"),
+                   extras=tuple(extras) if any(extras) else None)  # fmt: skip
+
+
+def _extras(p: dict, path: Any, where: str) -> dict[str, float]:
+    """A library pigment's renderer properties (`density`, `staining`, `granularity`) where it has them."""
+    out = {}
+    for key in pigments.DEFAULTS:
+        if key in p:
+            if not finite_number(p[key]) or p[key] < 0:
+                raise DiffwashError("must be a finite number >= 0", file=path, field=f"{where}.{key}")
+            out[key] = float(p[key])
+    return out
+
+
+def library_from_pigments(
+    pigs: list[pigments.Pigment],
+    *,
+    gamma: Any = None,
+    reference: float = 1.0,
+    grounds: dict[str, Any] | None = None,
+    k2: float = 0.0,
+    fit: dict[str, Any] | None = None,
+) -> Library:
+    """A library per linear sRGB channel from three-channel pigments (what the fits of sRGB data write).
+
+    **Arguments:**
+
+    - `pigs`: the `diffwash.pigments.Pigment`s, K and S per unit thickness (thickness 1 at `reference`).
+    - `gamma`: each pigment's amount-law exponent, thickness = (amount / reference)**gamma (default 1).
+    - `reference`: the amount of thickness 1 (1: the fits' amounts, coats for swatch cards).
+    - `grounds`: ground name -> linear sRGB reflectance (default: the shading model's paper as `paper`).
+    - `k2`: Saunderson's internal reflectance (0: none).
+    - `fit`: the fit's record.
+
+    **Returns:** the `Library` (its pigments keep their density, staining and granularity).
+    """
+    gam = np.ones(len(pigs)) if gamma is None else np.asarray(gamma, np.float64).reshape(len(pigs))
+    grounds = {"paper": DEFAULT_PAPER} if grounds is None else grounds
+    palette = mixing.Palette(K=jnp.asarray(np.stack([np.asarray(p.K, np.float64) for p in pigs])),
+                             S=jnp.asarray(np.stack([np.asarray(p.S, np.float64) for p in pigs])),
+                             law=mixing.AmountLaw(gamma=jnp.asarray(gam), reference=float(reference)),
+                             weights=jnp.ones(len(pigs)), names=tuple(p.name for p in pigs))  # fmt: skip
+    extras = tuple({k: float(getattr(p, k)) for k in pigments.DEFAULTS} for p in pigs)
+    ground = {str(k).lower(): np.asarray(v, np.float64).reshape(3) for k, v in grounds.items() if v is not None}
+    return Library(palette=palette, grounds=ground, observation=spectral.observation(), k2=float(k2), fit=fit,
+                   extras=extras)  # fmt: skip
+
+
+def _from_pigment_file(d: dict, path: Any) -> Library:
+    """An older pigment file (one pigment, or `{"pigments": [...]}`) as a library per sRGB channel: amount law
+    and grounds from its fit record where it has them (`fit-swatch --table` wrote `thickness_exponent`)."""
+    if isinstance(d.get("pigments"), list):
+        if not d["pigments"]:
+            raise DiffwashError("must be a non-empty list of pigments", file=path, field="pigments")
+        pigs = [pigments.parse(p, file=path, where=f"pigments[{i}]") for i, p in enumerate(d["pigments"])]
+    else:
+        pigs = [pigments.parse(d, file=path)]
+    fit = d.get("fit") if isinstance(d.get("fit"), dict) else {}
+    per = fit.get("pigments") if isinstance(fit.get("pigments"), dict) else {}
+    gamma = []
+    for p in pigs:
+        g = (per.get(p.name) or {}).get("thickness_exponent", 1.0) if isinstance(per.get(p.name), dict) else 1.0
+        gamma.append(float(g) if finite_number(g) and g > 0 else 1.0)
+    grounds = {}
+    for k in ("paper", "black"):
+        v = fit.get(k)
+        if isinstance(v, list) and len(v) == 3 and all(finite_number(x) and 0 <= x for x in v):
+            grounds[k] = v
+    model = fit.get("model") if isinstance(fit.get("model"), dict) else {}
+    k2 = model.get("k2", 0.0) if model.get("surface") == "saunderson" and finite_number(model.get("k2")) else 0.0
+    return library_from_pigments(pigs, gamma=gamma, grounds=grounds or None, k2=k2, fit=d.get("fit"))
 
 
 def load_library(path: str | os.PathLike) -> Library:

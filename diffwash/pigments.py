@@ -12,7 +12,10 @@ shipped with the package: either one pigment object
 
 or a library `{"pigments": [pigment, ...]}`. `name`, `K` and `S` are required;
 `density`, `staining` and `granularity` default to 0.05, 1.0 and 0.5. Other keys
-are ignored (fitted pigments carry their diagnostics there).
+are ignored (fitted pigments carry their diagnostics there). A
+`diffwash.library` file per sRGB channel (what the fits write) is such a
+library: its pigments' K and S are per unit thickness, thickness 1 being its
+amount law's reference amount (1 coat for swatch cards).
 
 The default library is the seed's table of 12 pigments (Smedresman, after
 Curtis et al.), `data/pigments/seed.json`.
@@ -32,6 +35,7 @@ from jaxtyping import ArrayLike, Float
 
 from . import _pigment_files
 from ._errors import DiffwashError
+from ._io import read_json as _read_json
 from ._io import write_json
 from ._pigment_files import DEFAULTS as DEFAULTS
 from ._pigment_files import key as _key
@@ -82,6 +86,12 @@ def parse(obj: Any, *, file: str | os.PathLike | None = None, where: str = "") -
 
 
 def _read_file(path: str | os.PathLike) -> list[Pigment]:
+    data = _read_json(path)
+    if isinstance(data, dict) and data.get("format") == "diffwash-library":
+        obs = data.get("observation")
+        if not (isinstance(obs, dict) and obs.get("bands") == "sRGB"):
+            raise DiffwashError("is a spectral pigment library (K and S per wavelength), not three-channel pigments: "
+                                'a scene takes its paint as {"library": FILE, "pigment": NAME}', file=path)  # fmt: skip
     return [Pigment(**r) for r in _pigment_files.read_records(path)]
 
 

@@ -31,8 +31,10 @@ def test_demo_end_to_end_cold(run_cli, tmp_path):
     assert not list(tmp_path.glob(".out.*"))  # written as a temporary folder, renamed: nothing left beside it
 
     truth = json.loads((out / "card.json").read_text())["meta"]["pigment"]
-    fitted = json.loads((out / "pigment.json").read_text())
-    assert fitted["fit"]["converged"] and fitted["fit"]["mean_delta_e_2000"] < 1.0
+    written = json.loads((out / "pigment.json").read_text())
+    assert written["format"] == "diffwash-library"  # a library of one pigment, which the demo's scene reads
+    fitted = written["pigments"][0]
+    assert written["fit"]["converged"] and written["fit"]["mean_delta_e_2000"] < 1.0
     # The fitted pigment predicts the true one's colours at coats the card never showed.
     coats = np.array([0.5, 6.0])[:, None]
     for ground in (0.9, 0.05):

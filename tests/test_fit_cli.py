@@ -62,6 +62,18 @@ def test_fit_swatch_table(run_cli, tmp_path, cache):
     fit = json.loads((tmp_path / "lib.json").read_text())["fit"]
     assert fit["model"]["thickness"] == "power" and all(d["converged"] for d in fit["pigments"].values())
     assert (tmp_path / "table.png").stat().st_size > 10_000
+    # What it wrote is a library that `predict` reads: the held-out amounts through the command line, as a user
+    # would (the figure of docs/fitting.md, 1.48 mean CIEDE2000, there clipped to the sRGB cube as measured).
+    assert json.loads((tmp_path / "lib.json").read_text())["format"] == "diffwash-library"
+    queries = ["pigment,amount,ground"] + [f"{n},{a:g},{g}" for n, a, g in zip(test.pigment, test.amount, test.ground)]
+    (tmp_path / "q.csv").write_text("\n".join(queries) + "\n")
+    r = run_cli("predict", "lib.json", "--table", "q.csv", "-o", "pred.csv", env=cache)
+    assert r.returncode == 0, r.stderr
+    rows = (tmp_path / "pred.csv").read_text().splitlines()
+    assert rows[0].split(",")[:9] == ["pigment", "amount", "ground", "r", "g", "b", "L*", "a*", "b*"]
+    lab = np.array([[float(v) for v in row.split(",")[6:9]] for row in rows[1:]])
+    de = np.asarray(colorimetry.delta_e_2000(lab, colorimetry.linear_srgb_to_lab(test.rgb)))
+    assert len(de) == len(test) and float(np.mean(de)) <= 1.8
 
 
 def render_target(tmp_path, name="target.png", size=64, **changes):

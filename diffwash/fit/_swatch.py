@@ -34,8 +34,8 @@ import numpy as np
 
 from .._errors import DiffwashError
 from .._io import read_image
+from ..library import Library, library_from_pigments
 from ..pigments import Pigment
-from ..pigments import save as save_pigments
 from ._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
 from ._kmfit import starts_for
 from ._noise import camera_noise_floor, jpeg_steps
@@ -252,9 +252,18 @@ class SwatchFit:
             "patches": [p.to_dict() for p in self.patches],
         }
 
+    @property
+    def library(self) -> Library:
+        """The pigment as a `diffwash.library.Library` per sRGB channel (amounts in coats, its grounds the card's
+        paper and black), with the diagnostics as its fit record."""
+        k2 = self.model.k2 if self.model.surface == "saunderson" else 0.0
+        return library_from_pigments([self.pigment], grounds={"paper": self.paper, "black": self.black}, k2=k2,
+                                     fit=self.to_dict())  # fmt: skip
+
     def save(self, path: str | os.PathLike) -> None:
-        """Write the pigment file (library schema) with the diagnostics under `"fit"`."""
-        save_pigments(path, self.pigment, fit=self.to_dict())
+        """Write the library file (one pigment, per sRGB channel; also a pigment file) with the diagnostics
+        under `"fit"`: what `diffwash predict`, scenes and `fit-image` read."""
+        self.library.save(path)
 
 
 def _identifiability(patches: list[tuple[float, str]], sd: dict[str, np.ndarray]) -> str:

@@ -45,9 +45,9 @@ import numpy as np
 from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import check_float32, open_input
+from ..library import Library, library_from_pigments
 from ..measurements import refuse_absurd_amounts, refuse_colliding_names, rgb_scale
 from ..pigments import Pigment
-from ..pigments import save as save_pigments
 from ._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
 from ._kmfit import paired_start
 
@@ -352,15 +352,26 @@ class TableFit:
             out[p.name] = d
         return out
 
-    def save(self, path: str | os.PathLike) -> None:
-        """Write the pigments as a library file (`diffwash.pigments` schema) with diagnostics."""
+    @property
+    def library(self) -> Library:
+        """The pigments as a `diffwash.library.Library` per sRGB channel: thickness = amount**gamma (the law's
+        reference amount 1), the table's grounds, the diagnostics as its fit record. `Library.predict` gives
+        what `predict` does."""
         fit = {
+            "source": "diffwash fit-swatch --table",
             "model": self.model.describe(),
             "paper": self.paper.tolist(),
             "black": None if self.black is None else self.black.tolist(),
             "pigments": self.to_dict(),
         }
-        save_pigments(path, self.pigments, fit=fit)
+        k2 = self.model.k2 if self.model.surface == "saunderson" else 0.0
+        return library_from_pigments(self.pigments, gamma=self.gamma, grounds={"paper": self.paper, "black": self.black},
+                                     k2=k2, fit=fit)  # fmt: skip
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the library file (`diffwash.library`, per sRGB channel; also a pigment file) with diagnostics:
+        what `diffwash predict`, scenes and `fit-image` read."""
+        self.library.save(path)
 
 
 def delta_e_displayed(pred_linear: Any, obs_linear: Any) -> np.ndarray:

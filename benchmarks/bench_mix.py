@@ -1,6 +1,6 @@
 """Mixing real paint: fit and predict time, peak memory, and scores on pairs held out of the fit.
 
-    python benchmarks/bench_mix.py [--folds 4] [--only speed,seen,spectral,weights,rgb,mixbox]
+    python benchmarks/bench_mix.py [--folds 4] [--only speed,seen,spectral,weights,rgb,mixbox,single,paper,small]
 
 Prints Markdown tables, on the NTU WPSM measurements in data/ntu-wpsm/:
 
@@ -16,6 +16,16 @@ Prints Markdown tables, on the NTU WPSM measurements in data/ntu-wpsm/:
 3. Rows of measured pairs held out at random (a fifth of the mixture rows, seeds 0 and 1; every pair is still
    seen mixed in training, as in the dataset's own test split): the same scores with and without the pair
    terms (`MixModel.pairs`). The pair terms' ridge and number of bumps were chosen on seed 1.
+4. `single`: single paints at held-out amounts through the command line, as a user would: the single-paint rows
+   of a table with each paint's 2nd, 4th, ... amounts held out (the split of docs/fitting.md), `diffwash
+   fit-swatch --table` of the rest, `diffwash predict` of the held-out rows; mean CIEDE2000 of the predicted
+   L*a*b* against the measured. Spectral (`ntu-spectral-train.csv`, 13 paints) and 8-bit sRGB
+   (`primaries-P1-P7.csv`, 7 paints).
+5. `paper`: the paper's split emulated: a random fifth of all rows held out (seeds 0 and 1), the default fit of the
+   rest; whether it converged, its training and held-out scores.
+6. `small`: fit time of small tables with many band parameters (default settings, JIT included): a generated
+   table of 40 paints, each once over two light grounds, 77 bands (400-780 nm, 5 nm), and 80 NTU rows resampled
+   to the same grid.
 
 Timings taken while other work runs on the machine are provisional.
 """
@@ -37,12 +47,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from diffwash import colorimetry, measurements  # noqa: E402
+from diffwash import colorimetry, km, measurements  # noqa: E402
 from diffwash.fit import MixModel, fit_mixtures, pair_folds, score_library  # noqa: E402
 
 DATA = ROOT / "data" / "ntu-wpsm"
 SPECTRAL = DATA / "ntu-spectral-train.csv"
 RGB = DATA / "ntu-rgb-train.csv"
+PRIMARIES = DATA / "primaries-P1-P7.csv"
 
 
 def speed() -> None:
@@ -127,6 +138,150 @@ def seen_pairs(seed: int) -> None:
               f"{seconds:.0f} s |", flush=True)  # fmt: skip
 
 
+def _cli(*args: str, cwd: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    r = subprocess.run([sys.executable, "-m", "diffwash", *args], cwd=cwd, env=env, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"diffwash {' '.join(args)} failed: {r.stdout}{r.stderr}")
+
+
+def _held_out_amounts(m: measurements.Measurements) -> np.ndarray:
+    """Single-paint rows whose amount is a paint's 2nd, 4th, ... (docs/fitting.md's split), as a row mask."""
+    held = np.zeros(len(m), bool)
+    for name in m.names:
+        ix = [i for i, (p, mix) in enumerate(zip(m.pigments, m.is_mixture)) if not mix and p[0] == name]
+        order = sorted(ix, key=lambda i: sum(m.amounts[i]))
+        held[order[1::2]] = True
+    return held
+
+
+def _write_table(path: Path, m: measurements.Measurements, rows: np.ndarray) -> None:
+    """Rows of `m` as a table file: spectral as reflectance, RGB as 8-bit sRGB (as read)."""
+    bands = [f"{w:g}" for w in m.wavelengths] if m.spectral else ["r", "g", "b"]
+    fmt = (lambda v: [f"{x:.6f}" for x in v]) if m.spectral else (  # noqa: E731
+        lambda v: [str(int(x)) for x in np.round(255 * np.asarray(colorimetry.srgb_encode(v)))])
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["pigment", "amount", "ground", *bands])
+        for g, v in m.grounds.items():
+            w.writerow([g, 0, g, *fmt(v)])
+        for i in np.flatnonzero(rows):
+            w.writerow(["+".join(m.pigments[i]), "+".join(f"{a:g}" for a in m.amounts[i]), m.ground[i],
+                        *fmt(m.values[i])])  # fmt: skip
+
+
+def primaries_table(dest: Path) -> Path:
+    """`primaries-P1-P7.csv` (the NTU dataset's own layout) as a table in the shared format, 8-bit sRGB."""
+    from diffwash.fit import read_ntu_wpsm
+
+    t = read_ntu_wpsm(PRIMARIES)
+    enc = lambda lin: np.round(255 * np.asarray(colorimetry.srgb_encode(lin))).astype(int)  # noqa: E731
+    with open(dest, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["pigment", "amount", "ground", "r", "g", "b"])
+        w.writerow(["paper", 0, "paper", *enc(t.paper)])
+        w.writerows([(n, f"{a:g}", g, *enc(c)) for n, a, g, c in zip(t.pigment, t.amount, t.ground, t.rgb)])
+    return dest
+
+
+def single_paints(path: Path, linear: bool = False) -> None:
+    """Single paints' held-out amounts through `fit-swatch --table` and `predict` (section 4 of the docstring)."""
+    m = measurements.read_measurements(path)
+    single = ~np.asarray(m.is_mixture)
+    held = _held_out_amounts(m)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        _write_table(tmp / "train.csv", m, single & ~held)
+        t0 = time.perf_counter()
+        _cli("fit-swatch", "--table", "train.csv", "-o", "lib.json", *(["--linear"] if linear else []), cwd=tmp)
+        t_fit = time.perf_counter() - t0
+        with open(tmp / "q.csv", "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["pigment", "amount", "ground"])
+            w.writerows([("+".join(m.pigments[i]), "+".join(f"{a:g}" for a in m.amounts[i]), m.ground[i])
+                         for i in np.flatnonzero(held)])  # fmt: skip
+        _cli("predict", "lib.json", "--table", "q.csv", "-o", "pred.csv", cwd=tmp)
+        with open(tmp / "pred.csv", newline="") as f:
+            lab = np.array([[float(r["L*"]), float(r["a*"]), float(r["b*"])] for r in csv.DictReader(f)])
+    measured = measurements_lab(m)[held]
+    de = np.asarray(colorimetry.delta_e_2000(measured, lab))
+    print(f"| {path.name} | {int(np.sum(single & ~held))} | {len(de)} | {de.mean():.2f} | {np.median(de):.2f} | "
+          f"{de.max():.2f} | {t_fit:.0f} s |", flush=True)  # fmt: skip
+
+
+def measurements_lab(m: measurements.Measurements) -> np.ndarray:
+    if m.spectral:
+        return np.asarray(m.observation().lab(m.values), np.float64)
+    return np.asarray(colorimetry.linear_srgb_to_lab(m.values), np.float64)
+
+
+def paper_split(seed: int) -> None:
+    """A random fifth of all rows held out, the default fit of the rest (section 5 of the docstring)."""
+    m = measurements.read_measurements(SPECTRAL)
+    held = np.random.default_rng(seed).random(len(m)) < 0.2
+    t0, c0 = time.perf_counter(), time.process_time()
+    fit = fit_mixtures(m.select(~held))
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    s, h = fit.summary(), score_library(fit.library, m.select(held))
+    print(f"| {seed} | {int(np.sum(~held))} / {h['rows']} | {fit.converged} ({fit.iterations} steps) | "
+          f"{100 * s['share_de_ab_5']:.1f}%, {s['mean_de2000']:.2f} | {100 * h['share_de_ab_5']:.1f}%, "
+          f"{h['mean_de2000']:.2f} | {wall:.0f} s ({cpu:.0f} s CPU) |", flush=True)  # fmt: skip
+
+
+def generated_table(path: Path, paints: int = 40, seed: int = 0) -> None:
+    """A table of `paints` made-up paints (smooth random log K, log S), each once over two light grounds, 77 bands
+    (400-780 nm, 5 nm), 0.5% noise: 2 ground rows and 2 x `paints` paint rows."""
+    rng = np.random.default_rng(seed)
+    wl = np.arange(400, 781, 5.0)
+    x = (wl - 400) / 380
+    bumps = np.exp(-0.5 * ((x[:, None] - np.linspace(0, 1, 6)[None]) / 0.15) ** 2)
+    grounds = {"paper": 0.86 + 0.04 * x, "cream": 0.70 + 0.15 * x}
+    rows = [(g, "0", g, v) for g, v in grounds.items()]
+    for i in range(paints):
+        K = np.exp(rng.normal(0, 1.0) + bumps @ rng.normal(0, 1.5, 6))
+        S = np.exp(rng.normal(-1, 0.8) + bumps @ rng.normal(0, 0.5, 6))
+        for g, v in grounds.items():
+            R = np.asarray(km.over(*km.layer(K, S, 1.0), v)) * (1 + rng.normal(0, 0.005, len(wl)))
+            rows.append((f"Q{i + 1}", "0.05", g, np.clip(R, 0.001, 1)))
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["pigment", "amount", "ground", *(f"{v:g}" for v in wl)])
+        w.writerows([(p, a, g, *(f"{r:.5f}" for r in v)) for p, a, g, v in rows])
+
+
+def resampled_ntu(path: Path, rows: int = 80, seed: int = 0) -> None:
+    """`rows` rows of the NTU spectral table (single paints and mixtures, at random), interpolated to 400-780 nm in
+    5 nm steps (77 bands)."""
+    m = measurements.read_measurements(SPECTRAL)
+    pick = np.zeros(len(m), bool)
+    pick[np.random.default_rng(seed).choice(len(m), rows, replace=False)] = True
+    wl = np.arange(400, 781, 5.0)
+    res = lambda v: np.interp(wl, m.wavelengths, v)  # noqa: E731
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["pigment", "amount", "ground", *(f"{v:g}" for v in wl)])
+        for g, v in m.grounds.items():
+            w.writerow([g, 0, g, *(f"{x:.6f}" for x in res(v))])
+        for i in np.flatnonzero(pick):
+            w.writerow(["+".join(m.pigments[i]), "+".join(f"{a:g}" for a in m.amounts[i]), m.ground[i],
+                        *(f"{x:.6f}" for x in res(m.values[i]))])  # fmt: skip
+
+
+def small_tables() -> None:
+    """Fit time of small tables with many band parameters (section 6 of the docstring)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, make in (("generated: 40 paints x 2 grounds", generated_table), ("NTU, 80 rows resampled", resampled_ntu)):
+            path = Path(tmp, "t.csv")
+            make(path)
+            m = measurements.read_measurements(path)
+            t0, c0 = time.perf_counter(), time.process_time()
+            fit = fit_mixtures(m)
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            print(f"| {name} | {len(m)} rows, {len(m.names)} paints, {len(m.wavelengths)} bands | {wall:.1f} s "
+                  f"({cpu:.1f} s CPU) | {fit.converged} ({fit.iterations} steps) | {fit.summary()['mean_de2000']:.2f} |",
+                  flush=True)  # fmt: skip
+
+
 MODELS = {
     "spectral": ("spectral Duncan, amount law per pigment, CIEDE2000 refinement (ridge 3)", SPECTRAL, MixModel()),
     "logspectral": ("spectral Duncan, log-reflectance loss only", SPECTRAL, MixModel(loss="spectral")),
@@ -141,7 +296,7 @@ MODELS = {
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--folds", type=int, default=4)
-    ap.add_argument("--only", default="speed,seen,spectral,weights,rgb,mixbox")
+    ap.add_argument("--only", default="speed,seen,spectral,weights,rgb,mixbox,single,paper,small")
     args = ap.parse_args()
     only = args.only.split(",")
     if "speed" in only:
@@ -151,6 +306,22 @@ def main() -> None:
         print("| seed | model | rows | within dE*ab 5 | mean dE2000 | fit time |\n|---|---|---|---|---|---|")
         for seed in (0, 1):
             seen_pairs(seed)
+    if "single" in only:
+        print("\nSingle paints at held-out amounts, `fit-swatch --table` then `diffwash predict`:\n")
+        print("| table | training rows | held-out rows | mean dE2000 | median | max | fit (CLI) |\n|---|---|---|---|---|---|---|")
+        single_paints(SPECTRAL)
+        with tempfile.TemporaryDirectory() as tmp:
+            single_paints(primaries_table(Path(tmp, "primaries-P1-P7-table.csv")))
+    if "paper" in only:
+        print("\nThe paper's split emulated (a random fifth of all rows held out), default settings:\n")
+        print("| seed | train / held-out rows | converged | train: within dE*ab 5, mean dE2000 | held out | fit time |")
+        print("|---|---|---|---|---|---|")
+        for seed in (0, 1):
+            paper_split(seed)
+    if "small" in only:
+        print("\nSmall tables with many band parameters, default settings, JIT included:\n")
+        print("| table | size | fit time | converged | mean dE2000 |\n|---|---|---|---|---|")
+        small_tables()
     cv = [k for k in MODELS if k in only]
     if cv:
         print(f"\nLeave-pairs-out cross-validation, {args.folds} folds (held-out pairs' mixtures):\n")

@@ -68,9 +68,12 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
           f"{s['p95_de2000']:.2f}, max {s['max_de2000']:.2f}); {100 * s['share_de_ab_5']:.1f}% within dE*ab 5")
     status = "converged" if fit.converged else "did not converge"
     print(f"  Levenberg-Marquardt {status} in {fit.iterations} steps")
+    for c in fit.convergence:
+        print(f"  {c.describe()}")
     if not fit.converged and not args.allow_unconverged:
-        raise FailureError("the fit did not converge; nothing was written (use --allow-unconverged to write it "
-                           "anyway, or raise --max-steps)")  # fmt: skip
+        far = "; ".join(c.describe() for c in fit.convergence if not c)
+        raise FailureError(f"the fit did not converge ({far}); nothing was written (use --allow-unconverged to write "
+                           "it anyway, or raise --max-steps)")  # fmt: skip
     with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         dio.write_json(out_tmp, fit.library.to_dict())
         if report is not None:

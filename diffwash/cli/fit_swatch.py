@@ -1,5 +1,6 @@
 """Fit a pigment's K and S (per coat) to photos of its swatch card (PHOTO --layout LAYOUT.json), or every pigment of
-a table of measured colours at once (--table MEASUREMENTS.csv), and write a pigment file (or library) with the
+a table of measured colours at once (--table MEASUREMENTS.csv), and write a library file (diffwash.library: what
+predict, scenes and fit-image read; from three-channel data, per sRGB channel and a pigment file too) with the
 fit's diagnostics. Cards whose layouts hold several pigments, alone or mixed ("pigment": "P1+P4", "coats": "1+2"),
 are fitted jointly into a library, as a mixture table is. The layout and CSV formats are in docs/fitting.md; the
 Python equivalents are diffwash.fit.fit_swatches(PHOTO, LAYOUT), diffwash.fit.fit_swatch_mixtures(PHOTOS, LAYOUTS)
@@ -33,7 +34,7 @@ def add_arguments(p) -> None:
                    help="find an X-Rite ColorChecker Classic in each photo and calibrate the camera (tone curve and "
                         "colour matrix) from its 24 patches (needs the 'photo' extra)")  # fmt: skip
     p.add_argument("--table", metavar="CSV", help="fit every pigment of a measurement table instead of a photo")
-    p.add_argument("-o", "--output", required=True, metavar="JSON", help="the pigment (or library) file to write")
+    p.add_argument("-o", "--output", required=True, metavar="JSON", help="the library file to write (diffwash predict and scenes read it)")
     p.add_argument("--name", help="the pigment's name (default: the layout's 'name', else the photo's file name); "
                                   "on cards of several pigments, that of the patches that name none")
     p.add_argument("--report", metavar="PNG", help="also write a picture of observed vs fitted colours")
@@ -232,5 +233,6 @@ def _run_table(args, out: Path, report: Path | None) -> int:
         if report is not None:
             diffwash.fit.save_table_report(report_tmp, fit, table)
     _wrote(out, report)
+    print(f"  a library of {len(fit.pigments)} pigments (amounts as in the table): diffwash predict {out} --table ...")
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0

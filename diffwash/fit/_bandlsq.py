@@ -34,14 +34,81 @@ depending only on `band[b]` and `shared`) and `(H,)` (depending on `shared` only
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float, PyTree, Scalar
 
-__all__ = ["BandLevenbergMarquardt"]
+__all__ = ["BandLevenbergMarquardt", "Convergence", "newton_decrement", "GN_TOL"]
+
+#: A least-squares fit is at a minimum when a full Gauss-Newton step from where it stopped would lower its loss by
+#: at most this fraction (`newton_decrement`): the gradient, measured in the fit's own scale (the curvature's),
+#: is negligible against the loss. 1e-3 of the loss is a change of 0.05% in a mean CIEDE2000.
+GN_TOL = 1e-3
+
+
+def newton_decrement(H: Array, g: Array, f: Array) -> Array:
+    r"""The share of the loss $f = \lVert r \rVert^2$ a full Gauss-Newton step would remove: $g^\top H^{-1} g / f$
+    with $g = J^\top r$, $H = J^\top J$ (plus the priors' curvature).
+
+    A relative gradient norm in the fit's own scale: invariant to how the parameters are scaled (each is measured
+    by the curvature along it), and relative to the loss. Each diagonal entry of $H$ is raised by 1e-6 of itself
+    (Marquardt's scaling, which keeps that invariance): a direction the data leave nearly free is not taken as
+    infinitely far to go.
+    """
+    d = jnp.diagonal(H)
+    Hd = H + jnp.diag(1e-6 * d + jnp.finfo(H.dtype).tiny)
+    step = jnp.linalg.solve(Hd, g)
+    return jnp.vdot(g, step) / jnp.maximum(f, jnp.finfo(f.dtype).tiny)
+
+
+@dataclass(frozen=True)
+class Convergence:
+    """How a fit ended, and how far from a minimum.
+
+    **Fields:**
+
+    - `converged`: at a minimum: the loss stopped falling (relative decrease at most the tolerance) or a
+      Gauss-Newton step would lower it by at most `GN_TOL` of itself.
+    - `steps`: the steps taken.
+    - `decrement`: the share of the loss a Gauss-Newton step from the end would remove (`newton_decrement`;
+      NaN if not computed).
+    - `last_decrease`: the relative decrease of the loss over the last `window` steps.
+    - `window`: how many steps `last_decrease` spans.
+    - `stage`: which stage of the fit this is (e.g. `"CIEDE2000 refinement"`).
+    """
+
+    converged: bool
+    steps: int
+    decrement: float = float("nan")
+    last_decrease: float = float("nan")
+    window: int = 0
+    stage: str = ""
+
+    def __bool__(self) -> bool:
+        return bool(self.converged)
+
+    def describe(self) -> str:
+        """One line: where the fit stands (the numbers that say how far off a minimum it is)."""
+        parts = []
+        if np.isfinite(self.decrement):
+            parts.append(f"a Gauss-Newton step would lower its loss by {100 * self.decrement:.3g}% more")
+        if np.isfinite(self.last_decrease) and self.window:
+            parts.append(f"its last {self.window} steps lowered it by {100 * self.last_decrease:.3g}%")
+        what = f"{self.stage}: " if self.stage else ""
+        state = "at a minimum" if self.converged else "not at a minimum"
+        return f"{what}{state} after {self.steps} steps" + (f" ({'; '.join(parts)})" if parts else "")
+
+    def to_dict(self) -> dict[str, Any]:
+        fin = lambda v: float(v) if np.isfinite(v) else None  # noqa: E731
+        return {"stage": self.stage, "converged": bool(self.converged), "steps": int(self.steps),
+                "gauss_newton_decrement": fin(self.decrement), "last_decrease": fin(self.last_decrease),
+                "window": int(self.window)}  # fmt: skip
 
 
 class _State(eqx.Module):

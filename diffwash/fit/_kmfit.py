@@ -45,6 +45,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from .. import colorimetry, km
 from .._errors import DiffwashError
 from .._shard import shard_leading, unpad
+from ._bandlsq import GN_TOL, newton_decrement
 
 __all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2", "BATCH_MODES"]
 
@@ -304,7 +305,10 @@ def _solve_one(model: FitModel, max_steps: int, rows: Rows, theta0: dict[str, Ar
     r = info.residual
     J = info.jac.as_matrix()
     fitted = predict(model, sol.value, rows.amount, rows.ground)
-    return sol.value, jnp.sum(r * r), sol.stats["num_steps"], sol.result == optx.RESULTS.successful, J, fitted
+    # Out of steps at a minimum (a Gauss-Newton step would gain < GN_TOL of the loss) is converged too.
+    at_minimum = newton_decrement(J.T @ J, J.T @ r, jnp.sum(r * r)) <= GN_TOL
+    ok = (sol.result == optx.RESULTS.successful) | at_minimum
+    return sol.value, jnp.sum(r * r), sol.stats["num_steps"], ok, J, fitted
 
 
 @functools.lru_cache(maxsize=None)

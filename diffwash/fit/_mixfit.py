@@ -33,12 +33,14 @@ Which terms generalise to pairs never seen mixed is measured in docs/mixing.md.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
 import equinox as eqx
 import jax
+import jax.flatten_util
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
@@ -48,7 +50,7 @@ from .. import colorimetry, km, mixing, spectral
 from ..library import Library
 from ..measurements import Measurements
 from . import _pairs, _seen
-from ._bandlsq import BandLevenbergMarquardt
+from ._bandlsq import GN_TOL, BandLevenbergMarquardt, Convergence, newton_decrement
 
 __all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score_library", "residuals", "RGB_GRID"]
 
@@ -117,6 +119,7 @@ class MixtureFit:
     - `library`: the fitted `diffwash.library.Library` (its `fit` holds the record below).
     - `delta_e`: CIEDE2000 of each row, shape (N,); `delta_e_ab`: CIE 1976 dE*ab.
     - `converged`, `iterations`, `seconds`: how the solver ended.
+    - `convergence`: each stage's `Convergence` (how far from a minimum it ended; `describe()` says it in words).
     """
 
     library: Library
@@ -126,6 +129,7 @@ class MixtureFit:
     iterations: int
     seconds: float
     model: MixModel = field(default_factory=MixModel)
+    convergence: tuple[Convergence, ...] = ()
 
     def summary(self) -> dict[str, float]:
         """Mean, median, 95th percentile and max dE2000, and the share within dE*ab 5."""
@@ -261,9 +265,15 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
     shared0 = jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0)
     reflect = _Reflect(A, G, P, model)
     fn = _SpectralResiduals(reflect, Y, band0)
-    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
-    sol = optx.least_squares(fn, solver, (band0, shared0), max_steps=max_steps, throw=False)
-    y, ok, steps = sol.value, bool(sol.result == optx.RESULTS.successful), int(sol.stats["num_steps"])
+    if 3 * len(m) < band0.size:  # few rows, many band parameters: most band directions are the weak prior's,
+        # along which the solver would creep to max_steps; stop when a chunk of steps no longer lowers the loss
+        y, ok, steps = _solve_in_chunks(fn, (band0, shared0), None, max_steps, rtol, judge=model.loss != "de2000")
+        ok = dataclasses.replace(ok, stage="log-reflectance fit")
+    else:
+        solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
+        sol = optx.least_squares(fn, solver, (band0, shared0), max_steps=max_steps, throw=False)
+        y, steps = sol.value, int(sol.stats["num_steps"])
+        ok = Convergence(converged=bool(sol.result == optx.RESULTS.successful), steps=steps, stage="log-reflectance fit")
     if model.loss == "de2000":
         y, ok, more = _seen.refine_in_de2000(reflect, obs.lab, obs.lab(Y), y, ridge=model.ridge,
                                              shared_prior=_SharedPrior(P, model), max_steps=max_steps,
@@ -369,24 +379,39 @@ def _sum_of_squares(fn, y, args):
 CHUNK = 40
 
 
-def _solve_in_chunks(fn, y, args, max_steps: int, rtol: float):
+def _solve_in_chunks(fn, y, args, max_steps: int, rtol: float, judge: bool = True):
     """Levenberg-Marquardt in chunks of CHUNK steps, ended by the solver's own test or a plateau of the loss.
 
     In float32 an RGB fit reaches a point where no step lowers the loss by a representable amount: the
     trust region then rejects every step and optimistix's Cauchy test (which needs an accepted step) never
-    fires. A chunk that lowers the loss by less than `rtol` relative is that plateau: converged.
+    fires. A chunk that lowers the loss by less than `rtol` relative is that plateau: converged. Out of steps,
+    the fit is converged if a Gauss-Newton step would lower the loss by at most `GN_TOL` of itself.
+    Returns `(y, Convergence, steps)` (`judge` False: out of steps is not judged, for a stage whose result only
+    starts the next).
     """
     solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
     loss = lambda y: _sum_of_squares(fn, y, args)  # noqa: E731
     prev, steps = float(loss(y)), 0
+    first = prev
     while steps < max_steps:
         sol = optx.least_squares(fn, solver, y, args=args, max_steps=min(CHUNK, max_steps - steps), throw=False)
         y, steps = sol.value, steps + int(sol.stats["num_steps"])
         now = float(loss(y))
         if sol.result == optx.RESULTS.successful or prev - now <= rtol * prev:
-            return y, True, steps
-        prev = now
-    return y, False, steps
+            return y, Convergence(True, steps, last_decrease=(prev - now) / prev, window=CHUNK, stage="fit"), steps
+        first, prev = prev, now
+    dec = float(_decrement(fn, y, args)) if judge else float("nan")  # not judged: a later stage starts from here
+    return y, Convergence(dec <= GN_TOL, steps, decrement=dec, last_decrease=(first - prev) / first, window=CHUNK,
+                          stage="fit"), steps  # fmt: skip
+
+
+@eqx.filter_jit
+def _decrement(fn, y, args):
+    """`newton_decrement` of the least-squares problem `fn` at `y` (its Jacobian by forward mode)."""
+    flat, unravel = jax.flatten_util.ravel_pytree(y)
+    res = lambda v: jnp.concatenate([jnp.ravel(r) for r in jax.tree_util.tree_leaves(fn(unravel(v), args))])  # noqa: E731
+    r, J = res(flat), jax.jacfwd(res)(flat)
+    return newton_decrement(J.T @ J, J.T @ r, jnp.sum(r * r))
 
 
 def _flat_ground(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.ndarray:
@@ -423,6 +448,7 @@ def fit_mixtures(
         grounds = dict(m.grounds)
     else:
         (K, S, gam, w, k2, ok, steps), grounds, obs = _fit_rgb(m, names, model, max_steps, rtol)
+    stages = [ok if isinstance(ok, Convergence) else Convergence(converged=bool(ok), steps=steps, stage="fit")]
     w = w / np.exp(np.mean(np.log(w)))  # the weights' common scale is free: geometric mean 1
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
@@ -431,14 +457,17 @@ def fit_mixtures(
         one, A1 = _one_layer(A)
         terms, pairs_ok = _pairs.fit_pair_terms(palette, A1, G[one], measured_lab(m, obs)[one], obs.lab, k2,
                                                 ridge=model.pair_ridge)  # fmt: skip
-        palette, ok = eqx.tree_at(lambda p: p.pairs, palette, terms, is_leaf=lambda x: x is None), ok and pairs_ok
+        palette = eqx.tree_at(lambda p: p.pairs, palette, terms, is_leaf=lambda x: x is None)
+        stages.append(pairs_ok)
+    ok = all(bool(c) for c in stages)
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2)
     de, de_ab = residuals(lib, m)
     fit = MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model)
     record = {"model": model.describe(), "table": m.path, "converged": ok, "iterations": steps,
-              "summary": fit.summary(), "rows": _row_record(m, de, de_ab)}  # fmt: skip
+              "convergence": [c.to_dict() for c in stages], "summary": fit.summary(),
+              "rows": _row_record(m, de, de_ab)}  # fmt: skip
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=record)
-    return MixtureFit(lib, de, de_ab, ok, steps, fit.seconds, model)
+    return MixtureFit(lib, de, de_ab, ok, steps, fit.seconds, model, tuple(stages))
 
 
 def measured_lab(m: Measurements, obs: spectral.Observation) -> np.ndarray:

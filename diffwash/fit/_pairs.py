@@ -26,6 +26,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import colorimetry, mixing
+from ._bandlsq import GN_TOL, Convergence, newton_decrement
 
 __all__ = ["fit_pair_terms", "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
 
@@ -88,8 +89,12 @@ def _lm(residuals: Callable[[Array], Array], theta0: Array, steps: int) -> tuple
                 jnp.where(ok, (f - fc) / jnp.maximum(f, 1e-30), gain))  # fmt: skip
 
     f0 = loss(theta0)
-    th, _, mu, gain = jax.lax.fori_loop(0, steps, body, (theta0, f0, jnp.asarray(1e-3, f0.dtype), jnp.ones_like(f0)))
-    return th, (gain < 1e-4) | (mu > 1e8)
+    th, f, mu, gain = jax.lax.fori_loop(0, steps, body, (theta0, f0, jnp.asarray(1e-3, f0.dtype), jnp.ones_like(f0)))
+    # Out of steps with the loss still falling is not yet "not converged": at a minimum if a Gauss-Newton step from
+    # here would gain less than GN_TOL of the loss (the gradient in the fit's own scale).
+    r, J = residuals(th), jax.jacfwd(residuals)(th)
+    dec = newton_decrement(J.T @ J, J.T @ r, f)
+    return th, (gain < 1e-4) | (mu > 1e8) | (dec <= GN_TOL), dec
 
 
 @eqx.filter_jit
@@ -123,7 +128,7 @@ def fit_pair_terms(
     ridge: float = PAIR_RIDGE,
     bumps: int = PAIR_BUMPS,
     steps: int = PAIR_STEPS,
-) -> tuple[mixing.PairTerms | None, bool]:
+) -> tuple[mixing.PairTerms | None, Convergence]:
     """Fit a spectral palette's `PairTerms` to the two-pigment rows among `A` (module docstring).
 
     **Arguments:**
@@ -134,14 +139,14 @@ def fit_pair_terms(
     - `k2`: Saunderson's surface term of the palette's fit.
     - `ridge`, `bumps`, `steps`: the module's constants.
 
-    **Returns:** `(terms, converged)`: the `PairTerms` (None when no row mixes exactly two pigments) and
-    whether every pair's fit converged (`_lm`).
+    **Returns:** `(terms, convergence)`: the `PairTerms` (None when no row mixes exactly two pigments) and a
+    `Convergence`, true when every pair's fit converged (`_lm`), naming the pair farthest from its minimum.
     """
     if palette.wavelengths is None:
         raise ValueError("pair terms need a spectral palette (a band grid)")
     pairs = measured_pairs(np.asarray(A))
     if not pairs:
-        return None, True
+        return None, Convergence(converged=True, steps=0, stage="pair terms (none measured)")
     dtype = jnp.zeros(()).dtype
     centres, width = _basis(palette.wavelengths, bumps)
     A2, G2, lab2, mask = (jnp.asarray(x, dtype) if x.dtype != bool else jnp.asarray(x)
@@ -149,7 +154,10 @@ def fit_pair_terms(
     ij = np.asarray(pairs)
     K, S = jnp.asarray(palette.K, dtype)[ij], jnp.asarray(palette.S, dtype)[ij]
     gam, w = jnp.asarray(palette.law.gamma, dtype)[ij], jnp.asarray(palette.weights, dtype)[ij]
-    theta, done = _fit_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, bumps, ridge, steps,
+    theta, done, dec = _fit_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, bumps, ridge, steps,
                              K, S, gam, w, A2, G2, lab2, mask)  # fmt: skip
     terms = _terms(theta, tuple(pairs), bumps, centres, width, palette.wavelengths)
-    return terms, bool(jnp.all(done))
+    dec = np.asarray(dec, np.float64)
+    worst = int(np.argmax(np.where(np.asarray(done), -np.inf, dec))) if not np.all(done) else int(np.argmax(dec))
+    stage = f"pair terms ({len(pairs)} pairs; the farthest from a minimum: {palette.names[ij[worst, 0]]}+{palette.names[ij[worst, 1]]})"
+    return terms, Convergence(converged=bool(np.all(done)), steps=steps, decrement=float(dec[worst]), stage=stage)

@@ -33,7 +33,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .. import colorimetry
-from ._bandlsq import _tangents
+from ._bandlsq import GN_TOL, Convergence, _tangents
 
 __all__ = ["refine_in_de2000"]
 
@@ -61,7 +61,9 @@ def _loss(pb: _Problem, y):
 
 
 @eqx.filter_jit
-def _normal_equations(pb: _Problem, y):
+def _jacobians(pb: _Problem, y):
+    """The colour residuals' Jacobian in its two blocks, `Jb` (3N, B Q) and `Jg` (3N, G), the shared prior's `Jp`,
+    and the residuals (colour, ridge, prior)."""
     band, shared = y
     B, Q = band.shape
     ridge, lab_of = pb.ridge, pb.lab_of
@@ -73,12 +75,49 @@ def _normal_equations(pb: _Problem, y):
     Jb = jnp.einsum("nib,qnb->nibq", E, dR[:Q]).reshape(-1, B * Q)
     Jg = jnp.einsum("nib,gnb->nig", E, dR[Q:]).reshape(Jb.shape[0], -1)
     Jp = jax.jacfwd(pb.shared_prior)(shared)
+    return Jb, Jg, Jp, r.ravel(), rb.ravel(), rg
+
+
+@eqx.filter_jit
+def _normal_equations(pb: _Problem, y):
+    Jb, Jg, Jp, r, rb, rg = _jacobians(pb, y)
+    n = Jb.shape[1]
     J = jnp.concatenate([Jb, Jg], axis=1)
     H = J.T @ J
-    H = H.at[: B * Q, : B * Q].add(ridge**2 * jnp.eye(B * Q, dtype=H.dtype))
-    H = H.at[B * Q :, B * Q :].add(Jp.T @ Jp)
-    g = J.T @ r.ravel() + jnp.concatenate([ridge * rb.ravel(), Jp.T @ rg])
+    H = H.at[:n, :n].add(pb.ridge**2 * jnp.eye(n, dtype=H.dtype))
+    H = H.at[n:, n:].add(Jp.T @ Jp)
+    g = J.T @ r + jnp.concatenate([pb.ridge * rb, Jp.T @ rg])
     return H, g
+
+
+@eqx.filter_jit
+def _dense_step(H, g, mu):
+    """The damped step (Marquardt's scaling by the diagonal) from the normal equations."""
+    d = jnp.diagonal(H)
+    return jnp.linalg.solve(H + mu * jnp.diag(d + 1e-9 * jnp.mean(d)), -g)
+
+
+@eqx.filter_jit
+def _row_step(jac, ridge: float, mu):
+    r"""The same damped step without forming the (B Q)-square matrix, for tables with fewer colour residuals
+    than band parameters ($3N < BQ$: few rows, many pigments or bands). The band block is
+    $A = J_b^\top J_b + \mathrm{diag}(a)$, inverted through its $3N$ rows (Woodbury), and the shared parameters
+    are eliminated by the Schur complement: $O((3N)^2 BQ)$ instead of $O((BQ)^3)$."""
+    Jb, Jg, Jp, r, rb, rg = jac
+    dbb = jnp.sum(Jb * Jb, axis=0) + ridge**2
+    Hgg = Jg.T @ Jg + Jp.T @ Jp
+    dgg = jnp.diagonal(Hgg)
+    floor = 1e-9 * jnp.mean(jnp.concatenate([dbb, dgg]))
+    a = ridge**2 + mu * (dbb + floor)
+    Ja = Jb / a
+    C = jnp.eye(Jb.shape[0], dtype=Jb.dtype) + Ja @ Jb.T
+    a_inv = lambda X: X / a[:, None] - Ja.T @ jnp.linalg.solve(C, Ja @ X)  # noqa: E731
+    gb, gg = Jb.T @ r + ridge * rb, Jg.T @ r + Jp.T @ rg
+    Hbg = Jb.T @ Jg
+    AiHbg, Aigb = a_inv(Hbg), a_inv(gb[:, None])[:, 0]
+    schur = Hgg + mu * jnp.diag(dgg + floor) - Hbg.T @ AiHbg
+    dg = jnp.linalg.solve(schur, -(gg - Hbg.T @ Aigb))
+    return jnp.concatenate([-(Aigb + AiHbg @ dg), dg]), jnp.concatenate([gb, gg])
 
 
 def refine_in_de2000(
@@ -105,30 +144,48 @@ def refine_in_de2000(
     - `max_steps`, `rtol`: at most this many linearisations; stop when an accepted step lowers the loss by
       less than `rtol` relative.
 
-    **Returns:** `((band, shared), converged, steps)`.
+    **Returns:** `((band, shared), convergence, steps)`: the `Convergence` (true as a bool when converged: the
+    loss stopped falling, or, out of steps, a Gauss-Newton step would lower it by at most `GN_TOL`; it says
+    how far off a minimum the fit ended).
     """
     band0 = y0[0]
     pb = _Problem(reflect, lab_of, jnp.asarray(lab_target), band0, float(ridge), shared_prior)
     loss = lambda y: _loss(pb, y)  # noqa: E731
-    normal_equations = lambda y: _normal_equations(pb, y)  # noqa: E731
+    rows = 3 * lab_target.shape[0] < band0.size  # few rows, many band parameters: never form the square matrix
+    state = lambda y: _jacobians(pb, y) if rows else _normal_equations(pb, y)  # noqa: E731
+    # mu as an array: a Python float would be a static argument of the compiled step, compiled again for each value
+    solve = (lambda st, mu: _row_step(st, pb.ridge, jnp.asarray(mu, band0.dtype))) if rows else (  # noqa: E731
+        lambda st, mu: (_dense_step(*st, jnp.asarray(mu, band0.dtype)), st[1]))
     y, f = y0, float(loss(y0))
-    H, g = normal_equations(y)
-    mu = 1e-3
-    for step in range(1, max_steps + 1):
+    st = state(y)
+    history = [f]
+    mu, step, stopped = 1e-3, 0, False
+    while step < max_steps and not stopped:
+        step += 1
         while True:
-            d = jnp.diagonal(H)
-            delta = jnp.linalg.solve(H + mu * jnp.diag(d + 1e-9 * jnp.mean(d)), -g)
+            delta, _ = solve(st, mu)
             cand = (y[0] + delta[: band0.size].reshape(band0.shape), y[1] + delta[band0.size :])
             f_new = float(loss(cand))
             if f_new < f:
                 break
             mu *= 4.0
             if mu > 1e12:  # no step lowers the loss: a minimum as far as float arithmetic can tell
-                return y, True, step
+                return y, _ended(solve(st, 1e-6), f, history, step, True), step
         mu = max(mu / 3.0, 1e-9)
-        done = f - f_new <= rtol * f
+        stopped = f - f_new <= rtol * f
         y, f = cand, f_new
-        if done:
-            return y, True, step
-        H, g = normal_equations(y)
-    return y, False, max_steps
+        history.append(f)
+        st = state(y)
+    # Stopped by the small decrease, or out of steps: at a minimum if a Gauss-Newton step would gain little.
+    return y, _ended(solve(st, 1e-6), f, history, step, stopped), step
+
+
+def _ended(newton, f: float, history: list[float], steps: int, stopped: bool) -> Convergence:
+    """How the refinement ended: converged if it stopped on its own test or a Gauss-Newton step gains < GN_TOL.
+    `newton`: the barely damped step and the gradient there (`newton_decrement`'s share of the loss)."""
+    delta, g = newton
+    dec = float(-jnp.vdot(g, delta)) / max(f, 1e-30)
+    window = min(5, len(history) - 1)
+    last = (history[-1 - window] - history[-1]) / history[-1 - window] if window else 0.0
+    return Convergence(converged=bool(stopped or dec <= GN_TOL), steps=steps, decrement=dec, last_decrease=last,
+                       window=window, stage="CIEDE2000 refinement")  # fmt: skip

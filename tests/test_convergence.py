@@ -1,0 +1,78 @@
+"""When a fit is converged: at a minimum (the loss stopped falling, or a Gauss-Newton step would gain almost
+nothing), never merely because it ran out of steps; a fit stopped far from a minimum says how far."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from test_mix_seen import _toy
+
+from diffwash.fit import _bandlsq, _pairs, _seen
+
+
+def test_newton_decrement_is_the_share_of_the_loss_a_gauss_newton_step_removes():
+    with jax.enable_x64(True):
+        rng = np.random.default_rng(1)
+        J, b = jnp.asarray(rng.normal(size=(12, 4))), jnp.asarray(rng.normal(size=12))
+        x = jnp.zeros(4)
+        r = J @ x - b
+        f = jnp.sum(r * r)
+        best = jnp.linalg.lstsq(J, b)[0]
+        gained = (f - jnp.sum((J @ best - b) ** 2)) / f  # a linear problem: one Gauss-Newton step is exact
+        assert float(_bandlsq.newton_decrement(J.T @ J, J.T @ r, f)) == pytest.approx(float(gained), rel=1e-4)
+        # invariant to the parameters' scale: measured in the fit's own scale
+        D = jnp.diag(jnp.asarray([1e-3, 1.0, 1e3, 7.0]))
+        Js = J @ D
+        assert float(_bandlsq.newton_decrement(Js.T @ Js, Js.T @ r, f)) == pytest.approx(float(gained), rel=1e-4)
+
+
+def _refine(max_steps, rtol):
+    reflect, obs, band0, shared0 = _toy()
+    target = obs.lab(reflect(band0 + 0.4, shared0))
+    prior = lambda s: 1e-3 * s  # noqa: E731
+    return _seen.refine_in_de2000(reflect, obs.lab, target, (band0, shared0), ridge=1e-2, shared_prior=prior,
+                                  max_steps=max_steps, rtol=rtol)  # fmt: skip
+
+
+def test_a_fit_that_stalls_at_its_minimum_is_converged_though_out_of_steps():
+    with jax.enable_x64(True):
+        # rtol = 0: the decrease test never fires; the fit runs out of steps at its minimum
+        _, conv, steps = _refine(max_steps=60, rtol=0.0)
+        assert conv and conv.converged and conv.decrement <= _bandlsq.GN_TOL
+        assert "at a minimum" in conv.describe() and "not" not in conv.describe()
+
+
+def test_a_fit_stopped_far_from_its_minimum_says_how_far():
+    with jax.enable_x64(True):
+        _, conv, steps = _refine(max_steps=1, rtol=0.0)
+        assert not conv and steps == 1 and conv.decrement > _bandlsq.GN_TOL
+        text = conv.describe()
+        assert "not at a minimum after 1 steps" in text and "Gauss-Newton step would lower its loss by" in text
+        assert conv.to_dict()["gauss_newton_decrement"] == pytest.approx(conv.decrement)
+
+
+def test_pair_terms_out_of_steps_at_their_minimum_are_converged():
+    """The pair terms run a fixed number of steps: a pair still creeping at its minimum is converged."""
+    with jax.enable_x64(True):
+        def residuals(theta):  # a valley whose floor LM creeps along: at the minimum in few steps, never "still"
+            return jnp.asarray([10 * (theta[1] - theta[0] ** 2), 1 - theta[0], 0.3])
+
+        th, done, dec = _pairs._lm(residuals, jnp.asarray([1.0 + 1e-9, 1.0]), 3)
+        assert bool(done) and float(dec) <= _bandlsq.GN_TOL
+        th, done, dec = _pairs._lm(residuals, jnp.asarray([-1.2, 1.0]), 2)
+        assert not bool(done) and float(dec) > _bandlsq.GN_TOL
+
+
+def test_the_row_space_step_is_the_dense_step():
+    """Tables with fewer colour residuals than band parameters take the Woodbury/Schur step: the same step."""
+    with jax.enable_x64(True):
+        reflect, obs, band0, shared0 = _toy()
+        target = obs.lab(reflect(band0 + 0.3, shared0 * 2))[:3]  # 3 rows: 9 residuals < 14 band parameters
+        few = lambda band, shared: reflect(band, shared)[:3]  # noqa: E731
+        pb = _seen._Problem(few, obs.lab, target, band0, 0.5, lambda s: 0.1 * (s - 1.0))
+        y = (band0 + 0.1, shared0 - 0.05)
+        H, g = _seen._normal_equations(pb, y)
+        for mu in (1e-6, 1e-2, 10.0):
+            step, grad = _seen._row_step(_seen._jacobians(pb, y), 0.5, mu)
+            np.testing.assert_allclose(step, _seen._dense_step(H, g, mu), rtol=1e-7, atol=1e-10)
+            np.testing.assert_allclose(grad, g, rtol=1e-10, atol=1e-12)

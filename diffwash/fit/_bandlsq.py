@@ -44,7 +44,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float, PyTree, Scalar
 
-__all__ = ["BandLevenbergMarquardt", "Convergence", "newton_decrement", "GN_TOL"]
+__all__ = ["BandLevenbergMarquardt", "Convergence", "newton_decrement", "loss_floor", "GN_TOL"]
 
 #: A least-squares fit is at a minimum when a full Gauss-Newton step from where it stopped would lower its loss by
 #: at most this fraction (`newton_decrement`): the gradient, measured in the fit's own scale (the curvature's),
@@ -52,19 +52,26 @@ __all__ = ["BandLevenbergMarquardt", "Convergence", "newton_decrement", "GN_TOL"
 GN_TOL = 1e-3
 
 
-def newton_decrement(H: Array, g: Array, f: Array) -> Array:
+def loss_floor(residuals: int) -> float:
+    """The loss of 0.01 CIEDE2000 on every row of `residuals` colour residuals (3 per row): below it, shares of
+    the loss are float noise, not distance from a minimum."""
+    return 1e-4 * residuals / 3
+
+
+def newton_decrement(H: Array, g: Array, f: Array, floor: float = 0.0) -> Array:
     r"""The share of the loss $f = \lVert r \rVert^2$ a full Gauss-Newton step would remove: $g^\top H^{-1} g / f$
     with $g = J^\top r$, $H = J^\top J$ (plus the priors' curvature).
 
     A relative gradient norm in the fit's own scale: invariant to how the parameters are scaled (each is measured
     by the curvature along it), and relative to the loss. Each diagonal entry of $H$ is raised by 1e-6 of itself
     (Marquardt's scaling, which keeps that invariance): a direction the data leave nearly free is not taken as
-    infinitely far to go.
+    infinitely far to go. `floor`: the loss below which it is measured against `floor` instead (`loss_floor`: a
+    fit that reproduces its rows within 0.01 CIEDE2000 is at its minimum for any purpose).
     """
     d = jnp.diagonal(H)
     Hd = H + jnp.diag(1e-6 * d + jnp.finfo(H.dtype).tiny)
     step = jnp.linalg.solve(Hd, g)
-    return jnp.vdot(g, step) / jnp.maximum(f, jnp.finfo(f.dtype).tiny)
+    return jnp.vdot(g, step) / jnp.maximum(jnp.maximum(f, floor), jnp.finfo(f.dtype).tiny)
 
 
 @dataclass(frozen=True)

@@ -45,7 +45,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float
 from .. import colorimetry, km
 from .._errors import DiffwashError
 from .._shard import shard_leading, unpad
-from ._bandlsq import GN_TOL, newton_decrement
+from ._bandlsq import GN_TOL, loss_floor, newton_decrement
 
 __all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2", "BATCH_MODES"]
 
@@ -306,7 +306,7 @@ def _solve_one(model: FitModel, max_steps: int, rows: Rows, theta0: dict[str, Ar
     J = info.jac.as_matrix()
     fitted = predict(model, sol.value, rows.amount, rows.ground)
     # Out of steps at a minimum (a Gauss-Newton step would gain < GN_TOL of the loss) is converged too.
-    at_minimum = newton_decrement(J.T @ J, J.T @ r, jnp.sum(r * r)) <= GN_TOL
+    at_minimum = newton_decrement(J.T @ J, J.T @ r, jnp.sum(r * r), loss_floor(3 * rows.rgb.shape[-2])) <= GN_TOL
     ok = (sol.result == optx.RESULTS.successful) | at_minimum
     return sol.value, jnp.sum(r * r), sol.stats["num_steps"], ok, J, fitted
 

@@ -50,7 +50,7 @@ from .. import colorimetry, km, mixing, spectral
 from ..library import Library
 from ..measurements import Measurements
 from . import _pairs, _seen
-from ._bandlsq import GN_TOL, BandLevenbergMarquardt, Convergence, newton_decrement
+from ._bandlsq import GN_TOL, BandLevenbergMarquardt, Convergence, loss_floor, newton_decrement
 
 __all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score_library", "residuals", "RGB_GRID"]
 
@@ -411,7 +411,7 @@ def _decrement(fn, y, args):
     flat, unravel = jax.flatten_util.ravel_pytree(y)
     res = lambda v: jnp.concatenate([jnp.ravel(r) for r in jax.tree_util.tree_leaves(fn(unravel(v), args))])  # noqa: E731
     r, J = res(flat), jax.jacfwd(res)(flat)
-    return newton_decrement(J.T @ J, J.T @ r, jnp.sum(r * r))
+    return newton_decrement(J.T @ J, J.T @ r, jnp.sum(r * r), loss_floor(r.shape[0]))
 
 
 def _flat_ground(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.ndarray:

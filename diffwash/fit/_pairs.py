@@ -26,7 +26,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import colorimetry, mixing
-from ._bandlsq import GN_TOL, Convergence, newton_decrement
+from ._bandlsq import GN_TOL, Convergence, loss_floor, newton_decrement
 
 __all__ = ["fit_pair_terms", "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
 
@@ -93,7 +93,7 @@ def _lm(residuals: Callable[[Array], Array], theta0: Array, steps: int) -> tuple
     # Out of steps with the loss still falling is not yet "not converged": at a minimum if a Gauss-Newton step from
     # here would gain less than GN_TOL of the loss (the gradient in the fit's own scale).
     r, J = residuals(th), jax.jacfwd(residuals)(th)
-    dec = newton_decrement(J.T @ J, J.T @ r, f)
+    dec = newton_decrement(J.T @ J, J.T @ r, f, loss_floor(r.shape[0]))
     return th, (gain < 1e-4) | (mu > 1e8) | (dec <= GN_TOL), dec
 
 
@@ -158,6 +158,8 @@ def fit_pair_terms(
                              K, S, gam, w, A2, G2, lab2, mask)  # fmt: skip
     terms = _terms(theta, tuple(pairs), bumps, centres, width, palette.wavelengths)
     dec = np.asarray(dec, np.float64)
-    worst = int(np.argmax(np.where(np.asarray(done), -np.inf, dec))) if not np.all(done) else int(np.argmax(dec))
+    if np.all(done):
+        return terms, Convergence(converged=True, steps=steps, stage=f"pair terms ({len(pairs)} pairs)")
+    worst = int(np.argmax(np.where(np.asarray(done), -np.inf, dec)))
     stage = f"pair terms ({len(pairs)} pairs; the farthest from a minimum: {palette.names[ij[worst, 0]]}+{palette.names[ij[worst, 1]]})"
-    return terms, Convergence(converged=bool(np.all(done)), steps=steps, decrement=float(dec[worst]), stage=stage)
+    return terms, Convergence(converged=False, steps=steps, decrement=float(dec[worst]), stage=stage)

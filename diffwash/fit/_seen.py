@@ -33,7 +33,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .. import colorimetry
-from ._bandlsq import GN_TOL, Convergence, _tangents
+from ._bandlsq import GN_TOL, Convergence, _tangents, loss_floor
 
 __all__ = ["refine_in_de2000"]
 
@@ -157,6 +157,7 @@ def refine_in_de2000(
     solve = (lambda st, mu: _row_step(st, pb.ridge, jnp.asarray(mu, band0.dtype))) if rows else (  # noqa: E731
         lambda st, mu: (_dense_step(*st, jnp.asarray(mu, band0.dtype)), st[1]))
     y, f = y0, float(loss(y0))
+    floor = loss_floor(3 * lab_target.shape[0])
     st = state(y)
     history = [f]
     mu, step, stopped = 1e-3, 0, False
@@ -170,21 +171,21 @@ def refine_in_de2000(
                 break
             mu *= 4.0
             if mu > 1e12:  # no step lowers the loss: a minimum as far as float arithmetic can tell
-                return y, _ended(solve(st, 1e-6), f, history, step, True), step
+                return y, _ended(solve(st, 1e-6), f, history, step, True, floor), step
         mu = max(mu / 3.0, 1e-9)
         stopped = f - f_new <= rtol * f
         y, f = cand, f_new
         history.append(f)
         st = state(y)
     # Stopped by the small decrease, or out of steps: at a minimum if a Gauss-Newton step would gain little.
-    return y, _ended(solve(st, 1e-6), f, history, step, stopped), step
+    return y, _ended(solve(st, 1e-6), f, history, step, stopped, floor), step
 
 
-def _ended(newton, f: float, history: list[float], steps: int, stopped: bool) -> Convergence:
+def _ended(newton, f: float, history: list[float], steps: int, stopped: bool, floor: float) -> Convergence:
     """How the refinement ended: converged if it stopped on its own test or a Gauss-Newton step gains < GN_TOL.
     `newton`: the barely damped step and the gradient there (`newton_decrement`'s share of the loss)."""
     delta, g = newton
-    dec = float(-jnp.vdot(g, delta)) / max(f, 1e-30)
+    dec = float(-jnp.vdot(g, delta)) / max(f, floor, 1e-30)
     window = min(5, len(history) - 1)
     last = (history[-1 - window] - history[-1]) / history[-1 - window] if window else 0.0
     return Convergence(converged=bool(stopped or dec <= GN_TOL), steps=steps, decrement=dec, last_decrease=last,

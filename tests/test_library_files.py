@@ -39,7 +39,7 @@ def test_an_old_single_pigment_file_and_the_seed_library_load_as_libraries(tmp_p
     lib = load_library(tmp_path / "one.json")
     assert lib.names == ("Red",) and list(lib.grounds) == ["paper"]
     np.testing.assert_allclose(lib.predict(["Red"], [[2.0]]).linear_srgb[0], _km(RED, [2.0], PAPER)[0], rtol=1e-5)
-    seed = load_library(diffwash.pigments._default_library_path())  # no record: the shading model's paper
+    seed = load_library(DATA.parent / "diffwash" / "data" / "pigments" / "seed.json")  # no record: the shading model's paper
     assert len(seed.names) == 12 and np.allclose(seed.grounds["paper"], diffwash.shading.DEFAULT_PAPER)
 
 

@@ -11,6 +11,7 @@ in one call:
 lib = diffwash.library.load_library("paints.json")  # written by diffwash fit-swatch --table
 pred = lib.predict(["P1", "P1+P4", "P1/P4"], ["0.05", "0.02+0.03", "0.02/0.03"], ["paper"] * 3)
 pred.srgb8, pred.lab, pred.reflectance
+pred.de2000_90  # the CIEDE2000 radius holding the true colour with 90% probability (None: no uncertainty record)
 ```
 
 (`P1/P4` is a glaze stack: P4 brushed over dry P1, `diffwash.mixing.stack_reflectance`.)
@@ -22,7 +23,9 @@ The file is JSON:
  "observation": {"wavelengths": [380, ...], "illuminant": "D65", "observer": "...", "method": "ASTM E308"},
  "pigments": [{"name": "P1", "K": [...], "S": [...], "amount_law": {"kind": "power", "reference": 0.05,
                "gamma": 0.8}, "mixing_weight": 1.0}, ...],
- "grounds": {"paper": [...]}, "surface": {"k2": 0.0}, "fit": {...}}
+ "grounds": {"paper": [...]}, "surface": {"k2": 0.0}, "fit": {...},
+ "uncertainty": {"factor": [[...], ...], "diagonal": [...], "model_error": {"single": 0.4, "seen": 0.9,
+                 "unseen": 2.1}, "seen": [["P1", "P4"], ...], "record": {...}}}
 ```
 
 `"observation": {"bands": "sRGB"}` for a library per linear sRGB channel: what the fits of three-channel data
@@ -32,6 +35,17 @@ K and S per unit thickness, thickness 1 being the law's reference amount). A pig
 (`{"name": ..., "K": [r, g, b], "S": [...]}` or `{"pigments": [...]}`, without `"format"`) loads as such a
 library: amount law `t(a) = a^gamma` (gamma from its fit record, else 1), grounds from its fit record
 (`"paper"`, `"black"`), else the shading model's default paper.
+
+`"uncertainty"` (optional; `diffwash._regions.Posterior`) is what `de2000_90` is computed from: the
+covariance of the parameters $\theta$ (per pigment $\log K$ over the bands, then per pigment $\log S$, then
+each pigment's $\log\gamma$: n = 2PB + P) as $F F^\top + \mathrm{diag}(d)$, `factor` $F$ of n rows and
+`diagonal` $d$ of n numbers; the model error $s$ (CIELAB units per axis) of single paints, of mixtures of sets
+of pigments the table measured mixed (`seen`, listed) and of the others (`unseen`). A library without it
+(older files, RGB fits, `fit_mixtures(..., posterior=False)`) loads and predicts as before, its `de2000_90`
+None and `diffwash predict` writes no such column; a kind without a model error gets no region (NaN, an
+empty cell).
+
+`"observation": {"bands": "sRGB"}` for a library per linear sRGB channel.
 """
 
 from __future__ import annotations
@@ -47,7 +61,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from . import _schema, colorimetry, mixing, pigments, spectral
+from . import _regions, _schema, colorimetry, mixing, pigments, spectral
 from ._errors import DiffwashError
 from ._io import atomic_path, finite_number, read_json, write_json
 from .measurements import Measurements, Queries, parse_stack, read_queries
@@ -69,12 +83,16 @@ class Prediction:
     - `linear_srgb`: linear sRGB (D65, unclipped), shape (N, 3).
     - `lab`: CIELAB relative to the observation's white, shape (N, 3).
     - `bands`: the band names (`"380"`, ... or `r, g, b`).
+    - `de2000_90`: the CIEDE2000 radius around `lab` that holds the true colour with 90% probability, shape (N,)
+      (NaN for a kind of row the library measured no model error for), or None for a library without an
+      uncertainty record (`diffwash._regions`).
     """
 
     reflectance: np.ndarray
     linear_srgb: np.ndarray
     lab: np.ndarray
     bands: tuple[str, ...]
+    de2000_90: np.ndarray | None = None
 
     @property
     def srgb8(self) -> np.ndarray:
@@ -101,6 +119,7 @@ class Library:
     - `fit`: the fit's record (model terms, per-row residuals, summary), JSON-ready, or None.
     - `extras`: per pigment, the renderer's other properties (`density`, `staining`, `granularity`) written
       with it, or None.
+    - `posterior`: the parameters' covariance and model error (`diffwash._regions.Posterior`), or None.
     """
 
     palette: mixing.Palette
@@ -109,6 +128,7 @@ class Library:
     k2: float = 0.0
     fit: dict[str, Any] | None = field(default=None, repr=False)
     extras: tuple[dict[str, float], ...] | None = field(default=None, repr=False)
+    posterior: _regions.Posterior | None = field(default=None, repr=False)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -176,8 +196,11 @@ class Library:
         A = self.layer_amounts(q.pigments, q.amounts, q.layers, file=q.path, lines=q.lines)
         G = self.ground_matrix(q.ground, file=q.path, lines=q.lines)
         R, rgb, lab = _forward(self.palette, jnp.asarray(A), jnp.asarray(G), jnp.asarray(self.k2), self.observation)
-        return Prediction(np.asarray(R, np.float64), np.asarray(rgb, np.float64), np.asarray(lab, np.float64),
-                          self.observation.bands)  # fmt: skip
+        lab = np.asarray(lab, np.float64)
+        r90 = None
+        if self.posterior is not None:
+            r90 = _regions.de2000_90(self.posterior, self.palette, A, G, self.k2, self.observation.lab, lab, q.pigments)
+        return Prediction(np.asarray(R, np.float64), np.asarray(rgb, np.float64), lab, self.observation.bands, r90)
 
     def to_dict(self) -> dict[str, Any]:
         """The library as the JSON object of the module docstring."""
@@ -194,6 +217,8 @@ class Library:
             out["pair_terms"] = p.pairs.to_dict(p.names)
         if self.fit is not None:
             out["fit"] = self.fit
+        if self.posterior is not None:
+            out["uncertainty"] = self.posterior.to_dict()
         return out
 
     def save(self, path: str | os.PathLike) -> None:
@@ -333,8 +358,11 @@ def library_from_dict(d: Any, path: Any = None) -> Library:
                               is_leaf=lambda x: x is None)  # fmt: skip
     grounds = {k.lower(): np.asarray(v, np.float64) for k, v in spec.grounds.items()}
     extras = [_extras(p, path, f"pigments[{i}]") for i, p in enumerate(d["pigments"])]
+    post = None
+    if d.get("uncertainty") is not None:
+        post = _regions.Posterior.from_dict(d["uncertainty"], len(names) * (2 * K.shape[1] + 1), path)
     return Library(palette=palette, grounds=grounds, observation=obs, k2=spec.surface.k2, fit=d.get("fit"),
-                   extras=tuple(extras) if any(extras) else None)  # fmt: skip
+                   extras=tuple(extras) if any(extras) else None, posterior=post)  # fmt: skip
 
 
 def _extras(p: dict, path: Any, where: str) -> dict[str, float]:
@@ -419,15 +447,20 @@ def predict(library: Library | str | os.PathLike, pigments, amounts=None, ground
 
 
 def prediction_csv(queries: Queries, pred: Prediction) -> str:
-    """The CSV text `diffwash predict` writes: the query columns, `r,g,b` (8-bit sRGB), `L*,a*,b*`, the bands."""
+    """The CSV text `diffwash predict` writes: the query columns, `r,g,b` (8-bit sRGB), `L*,a*,b*`, `de2000_90`
+    (where the library has an uncertainty record; empty where it has no model error for the row's kind), the
+    bands."""
     buf = _stdio.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     bands = list(pred.bands) if pred.bands != spectral.RGB else []
-    w.writerow(["pigment", "amount", "ground", "r", "g", "b", "L*", "a*", "b*", *bands])
+    r90 = pred.de2000_90
+    w.writerow(["pigment", "amount", "ground", "r", "g", "b", "L*", "a*", "b*", *(["de2000_90"] if r90 is not None else []),
+                *bands])  # fmt: skip
     rgb = pred.srgb8
     for i in range(len(queries)):
         row = [*queries.row_text(i), queries.ground[i]]
         row += [f"{v:.4f}" for v in rgb[i]] + [f"{v:.4f}" for v in pred.lab[i]]
+        row += [] if r90 is None else [f"{r90[i]:.4f}" if np.isfinite(r90[i]) else ""]
         row += [f"{v:.6f}" for v in pred.reflectance[i]] if bands else []
         w.writerow(row)
     return buf.getvalue()

@@ -46,10 +46,10 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array
 
-from .. import colorimetry, km, mixing, spectral
+from .. import _regions, colorimetry, km, mixing, spectral
 from ..library import Library
 from ..measurements import Measurements
-from . import _pairs, _seen
+from . import _pairs, _posterior, _priors, _seen
 from ._bandlsq import GN_TOL, BandLevenbergMarquardt, Convergence, loss_floor, newton_decrement
 
 __all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score_library", "residuals", "RGB_GRID"]
@@ -92,6 +92,8 @@ class MixModel:
     - `pairs`: spectral tables: after the pigments, fit `diffwash.mixing.PairTerms` for every pair the table
       measured mixed (`diffwash.fit._pairs`), used for those pairs only; other pairs keep Duncan's law.
     - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter).
+    - `scatter_spread`, `gamma_spread`: the table's population priors (`diffwash.fit._priors`): how far a
+      pigment's log S (per band) and log amount-law exponent may stray from the table's mean (0: no prior).
     """
 
     gamma: bool = True
@@ -103,11 +105,14 @@ class MixModel:
     ridge: float = 3.0
     pairs: bool = True
     pair_ridge: float = _pairs.PAIR_RIDGE
+    scatter_spread: float = _priors.SCATTER_SPREAD
+    gamma_spread: float = _priors.GAMMA_SPREAD
 
     def describe(self) -> dict[str, Any]:
         return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
                 "own": self.own, "loss": self.loss, "ridge": self.ridge, "pairs": self.pairs,
-                "pair_ridge": self.pair_ridge}  # fmt: skip
+                "pair_ridge": self.pair_ridge, "scatter_spread": self.scatter_spread,
+                "gamma_spread": self.gamma_spread}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -191,9 +196,11 @@ def _shared(shared, P: int, model: MixModel):
 
 
 def _shared_prior(shared, P: int, model: MixModel):
-    """Weak ridge: exponents near 1, weights near 1 (their common scale is otherwise free), k2 near 0.04."""
+    """Weak ridge: exponents near 1, weights near 1 (their common scale is otherwise free), k2 near 0.04; and the
+    amount laws' population prior (`_priors.gamma_population`)."""
     lam = 0.01 * model.prior
-    return jnp.concatenate([lam * shared[: 2 * P], lam * (shared[2 * P :] + 3.0)])
+    pop = _priors.gamma_population(shared[:P], model.gamma_spread if model.gamma else 0.0)
+    return jnp.concatenate([lam * shared[: 2 * P], lam * (shared[2 * P :] + 3.0), pop])
 
 
 def _init_band(m: Measurements, A: np.ndarray, names: list[str]) -> np.ndarray:
@@ -252,7 +259,9 @@ class _SpectralResiduals(eqx.Module):
         band, shared = y
         eps = 1e-3 * self.reflect.model.prior
         R = self.reflect(band, shared)
-        per_band = jnp.concatenate([(jnp.log(R + LOG_FLOOR) - jnp.log(self.Y + LOG_FLOOR)).T, eps * (band - self.band0)], axis=1)
+        pop = _priors.scatter_population(band[:, self.reflect.P :], self.reflect.model.scatter_spread, _priors.LOG_NOISE)
+        per_band = jnp.concatenate([(jnp.log(R + LOG_FLOOR) - jnp.log(self.Y + LOG_FLOOR)).T, eps * (band - self.band0),
+                                    pop], axis=1)  # fmt: skip
         return per_band, _shared_prior(shared, self.reflect.P, self.reflect.model)
 
 
@@ -423,7 +432,8 @@ def _flat_ground(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.ndarra
 
 
 def fit_mixtures(
-    m: Measurements, *, model: MixModel = MixModel(), max_steps: int = 400, rtol: float | None = None, **observe: Any
+    m: Measurements, *, model: MixModel = MixModel(), max_steps: int = 400, rtol: float | None = None,
+    posterior: bool = True, **observe: Any,
 ) -> MixtureFit:
     r"""Fit every pigment of a measurement table jointly, single paints and mixtures (module docstring).
 
@@ -433,6 +443,8 @@ def fit_mixtures(
     - `model`: the `MixModel` terms (default: Duncan with a fitted amount law per pigment).
     - `max_steps`: Levenberg-Marquardt steps at most.
     - `rtol`: the solver's tolerance (default: 1e-4 in float32, 1e-7 in float64).
+    - `posterior`: spectral tables fitted in CIEDE2000: keep the parameters' Laplace posterior and the model
+      error measured on the table (`diffwash.fit._posterior`), so that predictions carry `de2000_90`.
     - `observe`: `illuminant`, `observer`, `method` of the `diffwash.spectral.Observation`
       (spectral tables; RGB tables are seen as sRGB: D65, CIE 1931 2-degree).
 
@@ -466,8 +478,59 @@ def fit_mixtures(
     record = {"model": model.describe(), "table": m.path, "converged": ok, "iterations": steps,
               "convergence": [c.to_dict() for c in stages], "summary": fit.summary(),
               "rows": _row_record(m, de, de_ab)}  # fmt: skip
-    lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=record)
-    return MixtureFit(lib, de, de_ab, ok, steps, fit.seconds, model, tuple(stages))
+    post = None
+    if posterior and m.spectral and model.loss == "de2000":
+        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib)
+        record["uncertainty"] = post.record
+    lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=record, posterior=post)
+    return MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model, tuple(stages))
+
+
+def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library):
+    """The fit's `_regions.Posterior`: Laplace covariance from the spectral stage's problem, model error of each
+    kind of row (in-sample for single paints and seen pairs, approximate leave-pairs-out for unseen ones)."""
+    P = len(names)
+    dtype = jnp.zeros(()).dtype
+    A, G = _dense(m, names)
+    A, G, Y = (jnp.asarray(x, dtype) for x in (A, G, m.values))
+    band = jnp.asarray(np.concatenate([np.log(np.asarray(palette.K)).T, np.log(np.asarray(palette.S)).T], 1), dtype)
+    w = np.asarray(palette.weights, np.float64)
+    gam = np.asarray(palette.law.gamma, np.float64)
+    k2_logit = np.log(k2 / (K2_MAX - k2)) if model.surface and 0 < k2 < K2_MAX else -3.0
+    shared = jnp.asarray(np.concatenate([np.log(gam), np.log(w), [k2_logit]]), dtype)
+    reflect = _Reflect(A, G, P, model)
+    band0 = jnp.asarray(_init_band(m, np.asarray(A), names), dtype)
+    F, diag, sigma = _posterior.laplace(_SpectralResiduals(reflect, Y, band0), (band, shared), len(m), P, model.gamma)
+    lab_m = measured_lab(m, obs)
+    folds = [t for _, t in pair_folds(m) if t.any()]
+    pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge), _SharedPrior(P, model))
+    held = _posterior.held_out_lab(pb, (band, shared), folds)
+    pred = lib.predict(m.pigments, m.amounts, m.ground)
+    kind = np.array(_regions.kinds(m.pigments, pairs(m)))
+    An, Gn = np.asarray(A), np.asarray(G)
+
+    def draw(a, sel=slice(None)):
+        return _regions.lab_draws(_regions.Posterior(np.sqrt(a) * F, a * diag, {}), palette, An[sel], Gn[sel], k2,
+                                  obs.lab)  # fmt: skip
+
+    one = kind == "single"
+    a = _posterior.shrink_to_rows(lambda a: draw(a, one), lab_m[one], pred.lab[one]) if one.any() else 1.0
+    F, diag = np.sqrt(a) * F, a * diag
+    spread = draw(1.0)
+    scale, rows = {}, {}
+    for k in ("single", "seen"):
+        sel = kind == k
+        rows[k] = int(sel.sum())
+        if sel.any():
+            scale[k] = _posterior.calibrate_scale(lab_m[sel], pred.lab[sel], spread[:, sel])
+    test = np.concatenate([np.flatnonzero(t) for t in folds]) if folds else np.zeros(0, int)
+    rows["unseen"] = len(test)
+    if len(test):
+        scale["unseen"] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test])
+    record = {"noise_log_reflectance": round(sigma, 6), "covariance_scale": round(a, 4),
+              "model_error": {k: round(v, 4) for k, v in scale.items()},
+              "rows": rows, "unseen_from": f"approximate leave-pairs-out cross-validation, {len(folds)} folds"}  # fmt: skip
+    return _regions.Posterior(F, diag, scale, tuple(pairs(m)), record)
 
 
 def measured_lab(m: Measurements, obs: spectral.Observation) -> np.ndarray:

@@ -85,12 +85,16 @@ def test_predict_writes_rgb_lab_and_bands_through_the_cli(fitted, tmp_path):
     assert status == 0
     with open(tmp_path / "p.csv") as f:
         rows = list(csv.reader(f))
-    assert rows[0][:9] == ["pigment", "amount", "ground", "r", "g", "b", "L*", "a*", "b*"]
-    assert rows[0][9:] == [f"{g:g}" for g in GRID] and len(rows) == 4
+    assert rows[0][:10] == ["pigment", "amount", "ground", "r", "g", "b", "L*", "a*", "b*", "de2000_90"]
+    assert rows[0][10:] == [f"{g:g}" for g in GRID] and len(rows) == 4
+    # Each row's 90% region: a single paint, a pair the table measured mixed, a paint mixed with itself.
+    r90 = np.array([r[9] for r in rows[1:]], float)
+    assert np.all(np.isfinite(r90)) and np.all(r90 > 0)
     # The same numbers as the one-call API; a paint mixed with itself is itself at the summed amount.
     api = library.predict(folder / "lib.json", q)
     np.testing.assert_allclose(np.array(rows[1][3:6], float), api.srgb8[0], atol=1e-3)
-    np.testing.assert_allclose(np.array(rows[3][9:], float), api.reflectance[2], atol=1e-5)
+    np.testing.assert_allclose(np.array(rows[3][10:], float), api.reflectance[2], atol=1e-5)
+    np.testing.assert_allclose(r90, api.de2000_90, atol=1e-4)
     single = library.predict(folder / "lib.json", ["B"], ["0.03"])
     np.testing.assert_allclose(api.reflectance[2], single.reflectance[0], atol=1e-6)
     # Lab is colour-science's, through the library's observation.
@@ -106,6 +110,8 @@ def test_the_library_file_round_trips(fitted, tmp_path):
     np.testing.assert_array_equal(np.asarray(again.palette.K), np.asarray(lib.palette.K))
     np.testing.assert_array_equal(np.asarray(again.palette.law.gamma), np.asarray(lib.palette.law.gamma))
     assert again.grounds.keys() == lib.grounds.keys()
+    np.testing.assert_allclose(again.posterior.factor, lib.posterior.factor, atol=1e-8)
+    assert again.posterior.model_error == lib.posterior.model_error
 
 
 def test_the_ntu_rgb_table_reads_as_mixtures_with_clipped_bounds():

@@ -122,3 +122,17 @@ def test_a_bad_uncertainty_record_is_one_line_naming_the_field(tmp_path, change,
     (tmp_path / "q.csv").write_text("pigment,amount,ground\nA,0.02,paper\n")
     assert main(["predict", str(tmp_path / "bad.json"), "--table", str(tmp_path / "q.csv"), "-o", str(tmp_path / "p.csv")]) == 2
     assert not (tmp_path / "p.csv").exists()
+
+
+def test_the_pigment_report_names_what_the_rows_left_free_and_the_measurement_that_would_pin_it():
+    P, B = 2, 4
+    n = 2 * P * B + P
+    diag = np.full(n, 0.01)
+    diag[P * B + B : P * B + 2 * B] = 4.0  # B's log S: free
+    diag[2 * P * B] = 1.0  # A's amount law: free
+    rep = _posterior.pigment_report(np.zeros((n, 1)), diag, ("A", "B"), B, mixed={"A"})
+    assert rep[0]["from_the_prior"] == ["amount law"] and "a second amount" in rep[0]["measure"]
+    assert rep[1]["from_the_prior"] == ["scattering"] and rep[1]["sd_log_S"] == 2.0
+    assert "over black" in rep[1]["measure"] and "never measured mixed" in rep[1]["measure"]
+    lines = _posterior.uncertainty_lines(rep)
+    assert len(lines) == 3 and lines[2].startswith("    B: log K 0.10, log S 2.00")

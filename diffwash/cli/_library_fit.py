@@ -70,6 +70,12 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
     print(f"  Levenberg-Marquardt {status} in {fit.iterations} steps")
     for c in fit.convergence:
         print(f"  {c.describe()}")
+    unc = (fit.library.fit or {}).get("uncertainty")
+    if unc is not None:
+        errors = ", ".join(f"{k} {v:.2f}" for k, v in unc["model_error"].items())
+        print(f"  90% regions: model error (CIELAB units per axis) {errors}")
+        for line in diffwash.fit.uncertainty_lines(unc["pigments"]):
+            print(line)
     if not fit.converged and not args.allow_unconverged:
         far = "; ".join(c.describe() for c in fit.convergence if not c)
         raise FailureError(f"the fit did not converge ({far}); nothing was written (use --allow-unconverged to write "

@@ -34,3 +34,4 @@ from ._mixfit import MixtureFit as MixtureFit
 from ._mixfit import fit_mixtures as fit_mixtures
 from ._mixfit import pair_folds as pair_folds
 from ._mixfit import score_library as score_library
+from ._posterior import uncertainty_lines as uncertainty_lines

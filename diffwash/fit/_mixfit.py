@@ -529,7 +529,9 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
         scale["unseen"] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test])
     record = {"noise_log_reflectance": round(sigma, 6), "covariance_scale": round(a, 4),
               "model_error": {k: round(v, 4) for k, v in scale.items()},
-              "rows": rows, "unseen_from": f"approximate leave-pairs-out cross-validation, {len(folds)} folds"}  # fmt: skip
+              "rows": rows, "unseen_from": f"approximate leave-pairs-out cross-validation, {len(folds)} folds",
+              "pigments": _posterior.pigment_report(F, diag, names, int(band.shape[0]),
+                                                    {n for p in pairs(m) for n in p})}  # fmt: skip
     return _regions.Posterior(F, diag, scale, tuple(pairs(m)), record)
 
 

@@ -168,3 +168,42 @@ def shrink_to_rows(draw, lab_true: np.ndarray, lab_pred: np.ndarray, level: floa
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if held(mid) < level else (lo, mid)
     return hi
+
+
+#: A parameter whose posterior standard deviation (natural log units) exceeds this was left free by the rows:
+#: its value came from the fit's start and priors, not from the measurements (a factor of 1.65 either way).
+FREE_SD = 0.5
+
+
+def pigment_report(F: np.ndarray, diag: np.ndarray, names, B: int, mixed: set[str]) -> list[dict]:
+    """Per pigment: the posterior standard deviation of log K and log S (root mean square over the bands) and of
+    log gamma, what the measurements determined, and the measurement that would pin what they did not."""
+    sd = np.sqrt(np.sum(F * F, axis=1) + diag)
+    P = len(names)
+    out = []
+    for i, n in enumerate(names):
+        k = float(np.sqrt(np.mean(sd[i * B : (i + 1) * B] ** 2)))
+        s = float(np.sqrt(np.mean(sd[P * B + i * B : P * B + (i + 1) * B] ** 2)))
+        g = float(sd[2 * P * B + i])
+        free = [what for what, v in (("absorption", k), ("scattering", s), ("amount law", g)) if v > FREE_SD]
+        need = []
+        if "scattering" in free or "absorption" in free:
+            need.append("the paint over black, or a tint with white")
+        if "amount law" in free:
+            need.append("a second amount")
+        if n not in mixed:
+            need.append("a mixture with another paint (it was never measured mixed)")
+        out.append({"name": n, "sd_log_K": round(k, 4), "sd_log_S": round(s, 4), "sd_log_gamma": round(g, 4),
+                    "from_the_prior": free, "measure": "; ".join(need)})  # fmt: skip
+    return out
+
+
+def uncertainty_lines(report: list[dict]) -> list[str]:
+    """`pigment_report` as lines for the command line."""
+    lines = ["  what the measurements determined (posterior sd in natural log units; > 0.5: left to the prior):"]
+    for r in report:
+        free = ", ".join(r["from_the_prior"]) or "nothing"
+        tail = f"; would pin it: {r['measure']}" if r["measure"] else ""
+        lines.append(f"    {r['name']}: log K {r['sd_log_K']:.2f}, log S {r['sd_log_S']:.2f}, log gamma "
+                     f"{r['sd_log_gamma']:.2f}; from the prior: {free}{tail}")  # fmt: skip
+    return lines

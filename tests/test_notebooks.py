@@ -125,10 +125,20 @@ def _check_04(text: str) -> None:
     assert all(a > b for a, b in zip(list(levels.values()), list(levels.values())[1:])), levels
 
 
-#: What each notebook prints of its own accuracy, checked after it runs (issue 24). Notebook 5 prints none;
-#: notebook 6's held-out figures belong to its rewrite for the real-paint issue.
+def _check_06(text: str) -> None:
+    # The held-out P12 mixtures: today 15.56 mean CIEDE2000 and every row inside its (vacuous, ~60) 90% region,
+    # as the notebook explains; the issue asks <= 5.0, or regions holding 75-97%. Held to today's figures.
+    import ast
+
+    got = ast.literal_eval(_find(r"held-out pairs: (\{[^}]*\})", text)[1])
+    assert got["rows"] == 32 and got["mean_de2000"] <= 16.0, got
+    assert 0.5 <= got["held_by_90_regions"] <= 1.0, got
+
+
+#: What each notebook prints of its own accuracy, checked after it runs (issue 24). Notebook 5 prints none.
 PRINTED_FIGURES = {"01-kubelka-munk": _check_01, "02-shading-and-the-lut": _check_02,
-                   "03-fitting-a-swatch-photo": _check_03, "04-fit-bake-export-preview": _check_04}  # fmt: skip
+                   "03-fitting-a-swatch-photo": _check_03, "04-fit-bake-export-preview": _check_04,
+                   "06-mixing-real-paint": _check_06}  # fmt: skip
 
 
 def _slowest_cells(nb, n: int = 3) -> str:

@@ -1,6 +1,7 @@
 """The notebooks run top to bottom without errors, each within its time budget, and are stored without outputs;
 and what a notebook prints of its own accuracy stays within the range the docs and benchmarks give it."""
 
+import ast
 import re
 import time
 
@@ -128,8 +129,6 @@ def _check_04(text: str) -> None:
 def _check_06(text: str) -> None:
     # The held-out P12 mixtures: today 15.56 mean CIEDE2000 and every row inside its (vacuous, ~60) 90% region,
     # as the notebook explains; the issue asks <= 5.0, or regions holding 75-97%. Held to today's figures.
-    import ast
-
     got = ast.literal_eval(_find(r"held-out pairs: (\{[^}]*\})", text)[1])
     assert got["rows"] == 32 and got["mean_de2000"] <= 16.0, got
     assert 0.5 <= got["held_by_90_regions"] <= 1.0, got

@@ -135,8 +135,8 @@ def lab_draws(post: Posterior, palette: mixing.Palette, A, G, k2, lab_of, draws:
 
 @eqx.filter_jit
 def _draw_labs(palette, A, G, k2, lab_of, ths):
-    lab0 = lab_of(palette.reflectance(A, G, k2))
-    one = lambda th: lab_of(_with_theta(palette, th).reflectance(A, G, k2)) - lab0  # noqa: E731
+    lab0 = lab_of(palette.stack_reflectance(A, G, k2))
+    one = lambda th: lab_of(_with_theta(palette, th).stack_reflectance(A, G, k2)) - lab0  # noqa: E731
     return jax.lax.map(one, ths)
 
 

@@ -76,8 +76,26 @@ def _fail(msg: str, path: Any, line: int | None = None, column: str | None = Non
     return DiffwashError(msg, file=path, field=where)
 
 
+class _Rows:
+    """What tables and queries share: rows of pigments and amounts, each row one or more layers (`layers`: the
+    pigments per layer, bottom first, or None where every row is one layer)."""
+
+    @property
+    def is_stack(self) -> np.ndarray:
+        """Rows of more than one layer (glaze stacks), shape (N,)."""
+        return _is_stack(self)
+
+    def row_layers(self, i: int) -> list[tuple[tuple[str, ...], tuple[float, ...]]]:
+        """Row `i`'s layers, bottom first: `[(names, amounts), ...]`."""
+        return split_layers(self.pigments[i], self.amounts[i], None if self.layers is None else self.layers[i])
+
+    def row_text(self, i: int) -> tuple[str, str]:
+        """Row `i`'s pigment and amount as a table writes them (`A+B/C`, `0.01+0.01/0.03`)."""
+        return format_stack(self.row_layers(i))
+
+
 @dataclass(frozen=True)
-class Measurements:
+class Measurements(_Rows):
     """Measured reflectance of paint layers, one row per sample.
 
     **Fields:**
@@ -127,19 +145,6 @@ class Measurements:
         """Rows with a layer holding more than one distinct pigment, shape (N,)."""
         return _is_mixture(self)
 
-    @property
-    def is_stack(self) -> np.ndarray:
-        """Rows of more than one layer (glaze stacks), shape (N,)."""
-        return _is_stack(self)
-
-    def row_layers(self, i: int) -> list[tuple[tuple[str, ...], tuple[float, ...]]]:
-        """Row `i`'s layers, bottom first: `[(names, amounts), ...]`."""
-        return split_layers(self.pigments[i], self.amounts[i], None if self.layers is None else self.layers[i])
-
-    def row_text(self, i: int) -> tuple[str, str]:
-        """Row `i`'s pigment and amount as a table writes them (`A+B/C`, `0.01+0.01/0.03`)."""
-        return format_stack(self.row_layers(i))
-
     def observation(self, **kwargs: Any) -> spectral.Observation:
         """The `diffwash.spectral.Observation` of this table's bands (keywords: illuminant, observer, method)."""
         return spectral.observation(self.wavelengths, **kwargs)
@@ -158,7 +163,7 @@ class Measurements:
 
 
 @dataclass(frozen=True)
-class Queries:
+class Queries(_Rows):
     """Rows to predict: pigments, amounts and ground per row (as `Measurements`, without values)."""
 
     pigments: tuple[tuple[str, ...], ...]
@@ -170,19 +175,6 @@ class Queries:
 
     def __len__(self) -> int:
         return len(self.pigments)
-
-    @property
-    def is_stack(self) -> np.ndarray:
-        """Rows of more than one layer (glaze stacks), shape (N,)."""
-        return _is_stack(self)
-
-    def row_layers(self, i: int) -> list[tuple[tuple[str, ...], tuple[float, ...]]]:
-        """Row `i`'s layers, bottom first: `[(names, amounts), ...]`."""
-        return split_layers(self.pigments[i], self.amounts[i], None if self.layers is None else self.layers[i])
-
-    def row_text(self, i: int) -> tuple[str, str]:
-        """Row `i`'s pigment and amount as a table writes them (`A+B/C`, `0.01+0.01/0.03`)."""
-        return format_stack(self.row_layers(i))
 
 
 def _is_stack(rows: Any) -> np.ndarray:

@@ -112,10 +112,13 @@ def test_ninety_percent_intervals_hold_the_truth_about_ninety_percent_of_the_tim
 
 
 def test_a_swatch_fit_capped_at_too_few_steps_says_it_did_not_converge(tmp_path, run_cli):
+    """One step leaves this card's fit far from its minimum (mean CIEDE2000 0.099 against 0.053); two steps
+    already reach it (0.05318 against 0.05317 after 44), and a fit at its minimum is converged, however it
+    got there (docs/mixing.md, "When a fit has converged")."""
     card = make_swatch_card(pigments.load("Cadmium Red"), coats=(1, 2), seed=1)
     save_swatch_card(card, tmp_path / "card.png")
-    assert not fit_swatches(tmp_path / "card.png", tmp_path / "card.json", max_steps=2).converged
-    r = run_cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "out.json", "--max-steps", "2")
+    assert not fit_swatches(tmp_path / "card.png", tmp_path / "card.json", max_steps=1).converged
+    r = run_cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "out.json", "--max-steps", "1")
     assert r.returncode == 1 and "did not converge" in r.stderr and "did not converge" in r.stdout
     assert not (tmp_path / "out.json").exists()
 

@@ -195,14 +195,18 @@ def _box(value: Any, file: Any, fld: str, size: tuple[int, int] | None) -> Box:
 
 
 def _object(obj: dict, key: str, file: Any, keys: set[str]) -> dict:
-    v = obj[key]
+    return _entry(obj[key], key, file, keys)
+
+
+def _entry(v: Any, where: str, file: Any, keys: Any) -> dict:
+    """`v` (the layout's field `where`) as a JSON object of only `keys`, with a `box`."""
     if not isinstance(v, dict):
-        raise _fail(f"must be a JSON object, got {type(v).__name__}", file, key)
+        raise _fail(f"must be a JSON object, got {type(v).__name__}", file, where)
     for k in v:
         if k not in keys:
-            raise _fail(f"unknown key (expected {', '.join(sorted(keys))})", file, f"{key}.{k}")
+            raise _fail(f"unknown key (expected {', '.join(sorted(keys))})", file, f"{where}.{k}")
     if "box" not in v:
-        raise _fail("missing key", file, f"{key}.box")
+        raise _fail("missing key", file, f"{where}.box")
     return v
 
 
@@ -237,12 +241,8 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
     patches = []
     for i, p in enumerate(items):
         where = f"patches[{i}]"
-        if not isinstance(p, dict):
-            raise _fail(f"must be a JSON object, got {type(p).__name__}", file, where)
-        for k in p:
-            if k not in _PATCH_KEYS:
-                raise _fail("unknown key (expected box, coats, ground, pigment)", file, f"{where}.{k}")
-        for k in ("box", "coats", "ground"):
+        _entry(p, where, file, _PATCH_KEYS)
+        for k in ("coats", "ground"):
             if k not in p:
                 raise _fail("missing key", file, f"{where}.{k}")
         box = _box(p["box"], file, f"{where}.box", size)
@@ -280,13 +280,7 @@ def _references(items: Any, file: Any, size: tuple[int, int] | None) -> tuple[Re
     out = []
     for i, r in enumerate(items):
         where = f"references[{i}]"
-        if not isinstance(r, dict):
-            raise _fail(f"must be a JSON object, got {type(r).__name__}", file, where)
-        for k in r:
-            if k not in _REFERENCE_KEYS:
-                raise _fail(f"unknown key (expected {', '.join(sorted(_REFERENCE_KEYS))})", file, f"{where}.{k}")
-        if "box" not in r:
-            raise _fail("missing key", file, f"{where}.box")
+        _entry(r, where, file, _REFERENCE_KEYS)
         box = _box(r["box"], file, f"{where}.box", size)
         given = [k for k in ("lab", "reflectance", "spectrum") if k in r]
         if len(given) != 1:

@@ -42,6 +42,7 @@ from ._scene import load_scene as load_scene
 from ._scene import referenced_files as referenced_files
 from ._scene import save_scene as save_scene
 from ._version import __version__ as __version__
+from ._widget import widget as widget
 from .pigments import Pigment as Pigment
 from .shading import Params as Params
 from . import library as library

@@ -1,0 +1,314 @@
+"""`diffwash.widget(scene)`: the exported WebGL2 shaders, live in a Jupyter cell (anywidget).
+
+The widget draws the scene with the very shaders `diffwash export` writes for
+the `webgl2` target (`diffwash._glsl.shader_sources`, both shading modes) and
+the LUT `diffwash.lut.bake` bakes, in a canvas of the scene's size, beside a
+panel of sliders. Its front end is `diffwash/data/widget/widget.js` (an ES
+module in anywidget's form) and `widget.css`.
+
+What a change costs, by what it changes:
+
+- `shininess`, `gain`, `bias`, `wash_reduction`, the light and the shading
+  mode are uniforms: the front end redraws, Python does nothing;
+- `k_wash`, `k_specular` and `k_unlit` also set the LUT's range
+  (`wash_max = k_specular k_wash`, `unlit_max = k_unlit`), and a pigment's K
+  and S (or a library mixture's proportions and amount) its values: Python
+  re-bakes the table (`lut.bake`, compiled once and reused; `bake_ms` says how
+  long it took) and sends it to the front end as half floats, the sRGB-encoded
+  values the viewer page embeds.
+
+So the table on screen is always `lut.bake(widget.params, lut_size)`.
+The export button (or `widget.export(folder)`) writes the tuned scene as
+`diffwash export` does. A scene's watercolour look is not drawn: the widget
+shows the plain model (the look's passes are in `viewer.html` and the
+three.js export).
+
+anywidget and traitlets are optional (the `widget` extra); the rest of
+diffwash never imports this module.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+import time
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import lut as _lut
+from ._errors import DiffwashError
+from ._export import export as _export
+from ._glsl import SHADING_MODES, shader_file_names, shader_sources
+from ._lazy import lazy
+from ._mixture import Mixture
+from ._scene import Scene, load_scene
+from ._version import __version__
+from .colorimetry import to_display
+from .pigments import Pigment
+from .shading import CONSTANTS, Params, paper_colour
+
+anywidget = lazy("anywidget")
+traitlets = lazy("traitlets")
+
+__all__ = ["widget", "RANGE_CONSTANTS", "lut_bytes", "mesh_bytes"]
+
+#: The constants that set the LUT's range: changing one re-bakes the table.
+RANGE_CONSTANTS = ("k_wash", "k_specular", "k_unlit")
+#: Where the export button writes by default (relative to the kernel's working folder).
+DEFAULT_FOLDER = "diffwash-widget-export"
+
+
+def lut_bytes(table: _lut.Lut) -> bytes:
+    """The front end's LUT: the linear values sRGB-encoded (as the PNG LUTs and the viewer hold them), as little-endian half floats, row 0 first."""
+    return np.ascontiguousarray(to_display(np.asarray(table.values, np.float64))).astype("<f2").tobytes()
+
+
+def mesh_bytes(scene: Scene) -> bytes:
+    """The mesh as the front end reads it: positions and normals (float32, xyz per vertex), then the faces (uint32)."""
+    m = scene.mesh
+    parts = [np.asarray(m.vertices, "<f4"), np.asarray(m.normals, "<f4"), np.asarray(m.faces, "<u4")]
+    return b"".join(np.ascontiguousarray(p).tobytes() for p in parts)
+
+
+def _pigment_state(p: Any) -> dict[str, Any]:
+    if isinstance(p, Mixture):
+        q = np.asarray(p.proportions, np.float64)
+        q = q / q.sum() if q.sum() > 0 else q
+        return {"mix": {n: float(v) for n, v in zip(p.palette.names, q)}, "amount": float(np.asarray(p.amount))}
+    return {"K": np.asarray(p.K, np.float64).tolist(), "S": np.asarray(p.S, np.float64).tolist()}
+
+
+def _pigment_sliders(p: Any) -> list[dict[str, Any]]:
+    """Sliders for one glaze: K and S per channel (log scale), or a mixture's proportions and amount."""
+    if isinstance(p, Mixture):
+        amount = float(np.asarray(p.amount))
+        out = [{"key": f"mix.{n}", "label": n, "min": 0.0, "max": 1.0, "step": 0.01} for n in p.palette.names]
+        return out + [{"key": "amount", "label": "amount", "min": amount / 10, "max": amount * 10, "log": True}]
+    out = []
+    for coef in ("K", "S"):
+        values = np.asarray(getattr(p, coef), np.float64)
+        for i, channel in enumerate("RGB"):
+            top = max(100.0, 10 * float(values[i]))
+            out.append({"key": f"{coef}.{i}", "label": f"{coef} {channel}", "min": 1e-3, "max": top, "log": True})
+    return out
+
+
+def _constant_sliders(p: Params) -> list[dict[str, Any]]:
+    value = {k: float(np.asarray(getattr(p, k))) for k in CONSTANTS}
+    top = {"k_wash": 3.0, "k_specular": 3.0, "k_unlit": 4.0, "shininess": 200.0}
+    out = []
+    for name in CONSTANTS:
+        if name in ("gain", "bias"):
+            lo, hi = 0.01, 0.99
+        elif name == "wash_reduction":
+            lo, hi = 0.0, 1.0
+        else:
+            lo, hi = 0.0, max(top[name], 2 * value[name])
+        step = 10.0 ** np.floor(np.log10((hi - lo) / 500))  # a round step: 0.001 for gain, 0.1 for shininess
+        out.append({"key": name, "label": name, "min": lo, "max": hi, "step": float(step), "rebake": name in RANGE_CONSTANTS})
+    return out
+
+
+def _config(scene: Scene, params: Params, lut_size: int) -> dict[str, Any]:
+    """What the front end needs once: the shaders, the camera and size, the mesh's layout, the sliders."""
+    shaders = {}
+    for mode in SHADING_MODES:
+        vert, frag = shader_sources("webgl2", mode, colour="lut", lut_srgb=True, output_srgb=True)
+        shaders[mode] = {"vert": vert, "frag": frag, "names": list(shader_file_names(mode))}
+    vertices = np.asarray(scene.mesh.vertices, np.float64)
+    centre = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+    cam = scene.camera
+    return {
+        "title": str(scene.path or "scene"),
+        "version": __version__,
+        "width": scene.width,
+        "height": scene.height,
+        "shaders": shaders,
+        "vertices": int(vertices.shape[0]),
+        "faces": int(np.asarray(scene.mesh.faces).shape[0]),
+        "centre": centre.tolist(),
+        "radius": float(np.max(np.linalg.norm(vertices - centre, axis=1))),
+        "camera": {k: np.asarray(getattr(cam, k), np.float64).tolist() for k in ("eye", "target", "up", "fov_y", "near", "far")},
+        "two_sided": not scene.cull_backfaces,
+        "background": to_display(np.asarray(paper_colour(params), np.float64)).tolist(),
+        "lut_size": lut_size,
+        "constants": _constant_sliders(params),
+        "pigments": {g: {"name": getattr(params, g).name, "sliders": _pigment_sliders(getattr(params, g))} for g in ("wash", "unlit")},
+        "look": scene.watercolour is not None,
+    }
+
+
+def _with_pigment(p: Any, state: dict[str, Any], field: str) -> Any:
+    """The glaze `p` with the values of its widget state (checked: finite, >= 0, the right shape)."""
+
+    def numbers(value: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        a = np.asarray(value, np.float64) if not isinstance(value, (str, bytes, dict)) else np.asarray(np.nan)
+        if a.shape != shape or not np.all(np.isfinite(a)) or np.any(a < 0) or np.any(a > 1e12):
+            raise DiffwashError(f"must be {shape[0] if shape else 'a'} finite number(s) in [0, 1e12], got {value!r}", field=f"{field}.{name}")
+        return a
+
+    if isinstance(p, Mixture):
+        names = p.palette.names
+        mix = state.get("mix", {})
+        if not isinstance(mix, dict) or set(mix) != set(names):
+            raise DiffwashError(f"must give a proportion for each of {', '.join(names)}", field=f"{field}.mix")
+        q = np.array([float(numbers(mix[n], f"mix.{n}", ())) for n in names])
+        if q.sum() <= 0:
+            raise DiffwashError("the proportions must not all be 0", field=f"{field}.mix")
+        amount = float(numbers(state.get("amount", p.amount), "amount", ()))
+        if amount <= 0:
+            raise DiffwashError(f"must be > 0, got {amount}", field=f"{field}.amount")
+        return dataclasses.replace(p, proportions=q, amount=np.float64(amount))
+    size = np.asarray(p.K).shape
+    return dataclasses.replace(p, K=numbers(state.get("K"), "K", size), S=numbers(state.get("S"), "S", size))
+
+
+def _params(base: Params, wash: dict, unlit: dict, constants: dict, light: list) -> Params:
+    """`base` with the widget's values (float64 NumPy scalars, as loaded scenes hold: the compiled bake is reused)."""
+    c = {}
+    for name in CONSTANTS:
+        v = constants.get(name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0 or v > 3.4e38:
+            raise DiffwashError(f"must be a finite number >= 0, got {v!r}", field=f"constants.{name}")
+        c[name] = np.float64(v)
+    direction = np.asarray(light, np.float64)
+    if direction.shape != (3,) or not np.all(np.isfinite(direction)) or not np.any(direction):
+        raise DiffwashError(f"must be 3 finite numbers, not all 0, got {light!r}", field="light")
+    return dataclasses.replace(
+        base, wash=_with_pigment(base.wash, wash, "wash"), unlit=_with_pigment(base.unlit, unlit, "unlit"), light=direction, **c
+    )
+
+
+def _front_end(name: str) -> str:
+    return (resources.files("diffwash") / "data" / "widget" / name).read_text(encoding="utf-8")
+
+
+@functools.cache
+def _widget_class() -> type:
+    """The anywidget class, made on first use (anywidget and traitlets are optional)."""
+    t = traitlets
+
+    class DiffwashWidget(anywidget.AnyWidget):
+        """A scene drawn live with the exported WebGL2 shaders (`diffwash.widget`)."""
+
+        _esm = t.Unicode(_front_end("widget.js")).tag(sync=True)
+        _css = t.Unicode(_front_end("widget.css")).tag(sync=True)
+        config = t.Dict().tag(sync=True)
+        mesh = t.Bytes().tag(sync=True)
+        shading = t.Unicode("per-pixel").tag(sync=True)
+        constants = t.Dict().tag(sync=True)
+        light = t.List(t.Float()).tag(sync=True)
+        wash = t.Dict().tag(sync=True)
+        unlit = t.Dict().tag(sync=True)
+        lut = t.Bytes().tag(sync=True)
+        lut_range = t.List(t.Float()).tag(sync=True)
+        bake_ms = t.Float(0.0).tag(sync=True)
+        export_folder = t.Unicode(DEFAULT_FOLDER).tag(sync=True)
+        status = t.Unicode("").tag(sync=True)
+
+        def __init__(self, scene: Scene, params: Params, lut_size: int, **kwargs: Any) -> None:
+            self._scene, self._base, self._lut_size = scene, params, lut_size
+            self._table: _lut.Lut | None = None
+            self._ready = False
+            super().__init__(
+                config=_config(scene, params, lut_size),
+                mesh=mesh_bytes(scene),
+                shading=scene.shading,
+                constants={k: float(np.asarray(getattr(params, k))) for k in CONSTANTS},
+                light=np.asarray(params.light, np.float64).tolist(),
+                wash=_pigment_state(params.wash),
+                unlit=_pigment_state(params.unlit),
+                **kwargs,
+            )
+            self._ready = True
+            self.rebake()
+            self.on_msg(self._on_message)
+
+        params = property(lambda self: _params(self._base, self.wash, self.unlit, self.constants, self.light),
+                          doc="The tuned shading `Params`.")  # fmt: skip
+        scene = property(lambda self: dataclasses.replace(self._scene, params=self.params, shading=self.shading),
+                         doc="The scene with the tuned `params` and shading mode.")  # fmt: skip
+        table = property(lambda self: self._table, doc="The `Lut` on screen (`lut.bake(self.params, lut_size)`).")
+
+        def rebake(self) -> _lut.Lut:
+            """Bake the LUT for the current values and send it to the front end; `bake_ms` is the time it took."""
+            start = time.perf_counter()
+            table = _lut.bake(self.params, self._lut_size)
+            data = lut_bytes(table)
+            elapsed = 1000 * (time.perf_counter() - start)
+            self._table = table
+            with self.hold_sync():
+                self.lut_range = [float(table.wash_max), float(table.unlit_max)]
+                self.lut = data
+                self.bake_ms = elapsed
+            return table
+
+        @t.validate("wash", "unlit", "constants", "light")
+        def _check(self, proposal: Any) -> Any:
+            """A value the model cannot take is refused before it is set (`DiffwashError` naming the field)."""
+            if self._ready:
+                values = {k: getattr(self, k) for k in ("wash", "unlit", "constants", "light")}
+                values[proposal["trait"].name] = proposal["value"]
+                _params(self._base, **values)
+            return proposal["value"]
+
+        @t.validate("shading")
+        def _check_shading(self, proposal: Any) -> Any:
+            if proposal["value"] not in SHADING_MODES:
+                raise DiffwashError(f"must be one of {', '.join(SHADING_MODES)}, got {proposal['value']!r}", field="shading")
+            return proposal["value"]
+
+        @t.observe("wash", "unlit", "constants")
+        def _changed(self, change: dict) -> None:
+            if not self._ready:
+                return
+            if change["name"] == "constants":  # only the range constants reach the table
+                old, new = change["old"], change["new"]
+                if all(old.get(k) == new.get(k) for k in RANGE_CONSTANTS):
+                    return
+            self.rebake()
+
+        def export(self, folder: str | os.PathLike | None = None, *, overwrite: bool = True) -> list[Path]:
+            """Write the tuned scene as `diffwash export` does (into `folder`, default `export_folder`); a previous export there is replaced."""
+            folder = Path(self.export_folder if folder is None else folder)
+            written = _export(self.scene, folder, overwrite=overwrite, size=self._lut_size)
+            self.status = f"exported {len(written)} files to {folder}"
+            return written
+
+        def _on_message(self, _widget: Any, content: Any, _buffers: Any) -> None:
+            if isinstance(content, dict) and content.get("type") == "export":
+                try:
+                    self.export()
+                except (DiffwashError, OSError) as e:
+                    self.status = f"error: {e}"
+
+    return DiffwashWidget
+
+
+def widget(scene: Scene | str | os.PathLike, *, params: Params | None = None, lut_size: int = 256) -> Any:
+    """A Jupyter widget drawing `scene` live with the exported WebGL2 shaders, with sliders for its constants and pigments.
+
+    **Arguments:**
+
+    - `scene`: a `Scene` or the path of a scene file.
+    - `params`: shading `Params` to start from (default: the scene's).
+    - `lut_size`: the LUT's samples per axis (default 256, as `diffwash export`).
+
+    **Returns:**
+
+    An `anywidget.AnyWidget`: display it (the last line of a cell). Its traits
+    `constants`, `light`, `shading`, `wash` and `unlit` follow the sliders
+    both ways; `params` and `scene` are the tuned values, `table` the LUT on
+    screen, `export(folder)` writes the tuned scene (the panel's button does
+    it into `export_folder`).
+    """
+    if isinstance(scene, (str, os.PathLike)):
+        scene = load_scene(scene)
+    if not isinstance(scene, Scene):
+        raise TypeError(f"widget() takes a Scene or a scene file path, got {type(scene).__name__}")
+    _lut.check_size(lut_size, "lut_size")
+    return _widget_class()(scene, scene.params if params is None else params, int(lut_size))

@@ -187,12 +187,97 @@ def _front_end(name: str) -> str:
     return (resources.files("diffwash") / "data" / "widget" / name).read_text(encoding="utf-8")
 
 
+class _Widget:
+    """The widget's behaviour; `_widget_class` puts it on an `anywidget.AnyWidget` with the synced traits."""
+
+    def __init__(self, scene: Scene, params: Params, lut_size: int, **kwargs: Any) -> None:
+        self._scene, self._base, self._lut_size = scene, params, lut_size
+        self._table: _lut.Lut | None = None
+        self._ready = False
+        super().__init__(  # type: ignore[call-arg]
+            config=_config(scene, params, lut_size),
+            mesh=mesh_bytes(scene),
+            shading=scene.shading,
+            constants={k: float(np.asarray(getattr(params, k))) for k in CONSTANTS},
+            light=np.asarray(params.light, np.float64).tolist(),
+            wash=_pigment_state(params.wash),
+            unlit=_pigment_state(params.unlit),
+            **kwargs,
+        )
+        self._ready = True
+        self.rebake()
+        self.on_msg(self._on_message)
+
+    @property
+    def params(self) -> Params:
+        """The tuned shading `Params`."""
+        return _params(self._base, self.wash, self.unlit, self.constants, self.light)
+
+    @property
+    def scene(self) -> Scene:
+        """The scene with the tuned `params` and shading mode."""
+        return dataclasses.replace(self._scene, params=self.params, shading=self.shading)
+
+    @property
+    def table(self) -> _lut.Lut | None:
+        """The `Lut` on screen: `lut.bake(self.params, lut_size)`."""
+        return self._table
+
+    def rebake(self) -> _lut.Lut:
+        """Bake the LUT for the current values and send it to the front end; `bake_ms` is the time it took."""
+        start = time.perf_counter()
+        table = _lut.bake(self.params, self._lut_size)
+        data = lut_bytes(table)
+        elapsed = 1000 * (time.perf_counter() - start)
+        self._table = table
+        with self.hold_sync():
+            self.lut_range = [float(table.wash_max), float(table.unlit_max)]
+            self.lut = data
+            self.bake_ms = elapsed
+        return table
+
+    def export(self, folder: str | os.PathLike | None = None, *, overwrite: bool = True) -> list[Path]:
+        """Write the tuned scene as `diffwash export` does (into `folder`, default `export_folder`); a previous export there is replaced."""
+        folder = Path(self.export_folder if folder is None else folder)
+        written = _export(self.scene, folder, overwrite=overwrite, size=self._lut_size)
+        self.status = f"exported {len(written)} files to {folder}"
+        return written
+
+    def _check_values(self, proposal: Any) -> Any:
+        """A value the model cannot take is refused before it is set (`DiffwashError` naming the field)."""
+        if self._ready:
+            values = {k: getattr(self, k) for k in ("wash", "unlit", "constants", "light")}
+            values[proposal["trait"].name] = proposal["value"]
+            _params(self._base, **values)
+        return proposal["value"]
+
+    def _check_shading(self, proposal: Any) -> Any:
+        if proposal["value"] not in SHADING_MODES:
+            raise DiffwashError(f"must be one of {', '.join(SHADING_MODES)}, got {proposal['value']!r}", field="shading")
+        return proposal["value"]
+
+    def _changed(self, change: dict) -> None:
+        """Re-bake for a pigment, or for a constant that sets the table's range; the other constants are uniforms."""
+        if not self._ready:
+            return
+        if change["name"] == "constants" and all(change["old"].get(k) == change["new"].get(k) for k in RANGE_CONSTANTS):
+            return
+        self.rebake()
+
+    def _on_message(self, _widget: Any, content: Any, _buffers: Any) -> None:
+        if isinstance(content, dict) and content.get("type") == "export":
+            try:
+                self.export()
+            except (DiffwashError, OSError) as e:
+                self.status = f"error: {e}"
+
+
 @functools.cache
 def _widget_class() -> type:
     """The anywidget class, made on first use (anywidget and traitlets are optional)."""
     t = traitlets
 
-    class DiffwashWidget(anywidget.AnyWidget):
+    class DiffwashWidget(_Widget, anywidget.AnyWidget):
         """A scene drawn live with the exported WebGL2 shaders (`diffwash.widget`)."""
 
         _esm = t.Unicode(_front_end("widget.js")).tag(sync=True)
@@ -210,81 +295,9 @@ def _widget_class() -> type:
         export_folder = t.Unicode(DEFAULT_FOLDER).tag(sync=True)
         status = t.Unicode("").tag(sync=True)
 
-        def __init__(self, scene: Scene, params: Params, lut_size: int, **kwargs: Any) -> None:
-            self._scene, self._base, self._lut_size = scene, params, lut_size
-            self._table: _lut.Lut | None = None
-            self._ready = False
-            super().__init__(
-                config=_config(scene, params, lut_size),
-                mesh=mesh_bytes(scene),
-                shading=scene.shading,
-                constants={k: float(np.asarray(getattr(params, k))) for k in CONSTANTS},
-                light=np.asarray(params.light, np.float64).tolist(),
-                wash=_pigment_state(params.wash),
-                unlit=_pigment_state(params.unlit),
-                **kwargs,
-            )
-            self._ready = True
-            self.rebake()
-            self.on_msg(self._on_message)
-
-        params = property(lambda self: _params(self._base, self.wash, self.unlit, self.constants, self.light),
-                          doc="The tuned shading `Params`.")  # fmt: skip
-        scene = property(lambda self: dataclasses.replace(self._scene, params=self.params, shading=self.shading),
-                         doc="The scene with the tuned `params` and shading mode.")  # fmt: skip
-        table = property(lambda self: self._table, doc="The `Lut` on screen (`lut.bake(self.params, lut_size)`).")
-
-        def rebake(self) -> _lut.Lut:
-            """Bake the LUT for the current values and send it to the front end; `bake_ms` is the time it took."""
-            start = time.perf_counter()
-            table = _lut.bake(self.params, self._lut_size)
-            data = lut_bytes(table)
-            elapsed = 1000 * (time.perf_counter() - start)
-            self._table = table
-            with self.hold_sync():
-                self.lut_range = [float(table.wash_max), float(table.unlit_max)]
-                self.lut = data
-                self.bake_ms = elapsed
-            return table
-
-        @t.validate("wash", "unlit", "constants", "light")
-        def _check(self, proposal: Any) -> Any:
-            """A value the model cannot take is refused before it is set (`DiffwashError` naming the field)."""
-            if self._ready:
-                values = {k: getattr(self, k) for k in ("wash", "unlit", "constants", "light")}
-                values[proposal["trait"].name] = proposal["value"]
-                _params(self._base, **values)
-            return proposal["value"]
-
-        @t.validate("shading")
-        def _check_shading(self, proposal: Any) -> Any:
-            if proposal["value"] not in SHADING_MODES:
-                raise DiffwashError(f"must be one of {', '.join(SHADING_MODES)}, got {proposal['value']!r}", field="shading")
-            return proposal["value"]
-
-        @t.observe("wash", "unlit", "constants")
-        def _changed(self, change: dict) -> None:
-            if not self._ready:
-                return
-            if change["name"] == "constants":  # only the range constants reach the table
-                old, new = change["old"], change["new"]
-                if all(old.get(k) == new.get(k) for k in RANGE_CONSTANTS):
-                    return
-            self.rebake()
-
-        def export(self, folder: str | os.PathLike | None = None, *, overwrite: bool = True) -> list[Path]:
-            """Write the tuned scene as `diffwash export` does (into `folder`, default `export_folder`); a previous export there is replaced."""
-            folder = Path(self.export_folder if folder is None else folder)
-            written = _export(self.scene, folder, overwrite=overwrite, size=self._lut_size)
-            self.status = f"exported {len(written)} files to {folder}"
-            return written
-
-        def _on_message(self, _widget: Any, content: Any, _buffers: Any) -> None:
-            if isinstance(content, dict) and content.get("type") == "export":
-                try:
-                    self.export()
-                except (DiffwashError, OSError) as e:
-                    self.status = f"error: {e}"
+        _validate_values = t.validate("wash", "unlit", "constants", "light")(_Widget._check_values)
+        _validate_shading = t.validate("shading")(_Widget._check_shading)
+        _observe = t.observe("wash", "unlit", "constants")(_Widget._changed)
 
     return DiffwashWidget
 

@@ -189,7 +189,7 @@ class Host:
         (folder / "host.html").write_text(HOST, encoding="utf-8")
         (folder / "state.json").write_text(json.dumps({**_state(w), "__binary__": list(BINARY)}), encoding="utf-8")
         self.w, self.server = w, Server(folder)
-        self.page = browser.new_page(viewport={"width": 1000, "height": 720}, device_scale_factor=1)
+        self.page = browser.new_page(viewport={"width": 1000, "height": 900}, device_scale_factor=1)
         self.messages = []
         self.page.on("console", lambda m: self.messages.append((m.type, m.text)))
         self.page.on("pageerror", lambda e: self.messages.append(("pageerror", str(e))))

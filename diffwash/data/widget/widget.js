@@ -258,7 +258,7 @@ function render({model, el}) {
   api.controls = controls;
   const status = () => {
     controls.status.textContent = model.get("status");
-    controls.info.textContent = `${config.faces} triangles, LUT ${config.lut_size}\u00b2 re-baked in ${model.get("bake_ms").toFixed(1)} ms` +
+    controls.info.textContent = `${config.faces} triangles; LUT ${config.lut_size}\u00b2, last bake ${model.get("bake_ms").toFixed(0)} ms` +
       (config.look ? "; the watercolour look is not drawn here (viewer.html and the three.js export draw it)" : "") +
       `; diffwash ${config.version}`;
   };

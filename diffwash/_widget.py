@@ -146,7 +146,10 @@ def _with_pigment(p: Any, state: dict[str, Any], field: str) -> Any:
     """The glaze `p` with the values of its widget state (checked: finite, >= 0, the right shape)."""
 
     def numbers(value: Any, name: str, shape: tuple[int, ...]) -> np.ndarray:
-        a = np.asarray(value, np.float64) if not isinstance(value, (str, bytes, dict)) else np.asarray(np.nan)
+        try:
+            a = np.asarray(value, np.float64) if not isinstance(value, (str, bytes, dict)) else np.asarray(np.nan)
+        except (TypeError, ValueError):  # ["a", 1, 2], ragged lists
+            a = np.asarray(np.nan)
         if a.shape != shape or not np.all(np.isfinite(a)) or np.any(a < 0) or np.any(a > 1e12):
             raise DiffwashError(f"must be {shape[0] if shape else 'a'} finite number(s) in [0, 1e12], got {value!r}", field=f"{field}.{name}")
         return a

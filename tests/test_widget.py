@@ -102,7 +102,7 @@ def test_library_mixture_proportions_rebake():
 @pytest.mark.parametrize(
     "trait, value, field",
     [("wash", {"K": [1.0, -1.0, 1.0], "S": [0.1, 0.1, 0.1]}, "wash.K"), ("unlit", {"K": [1.0, 1.0], "S": [0.1] * 3}, "unlit.K"),
-     ("wash", {"K": [float("nan")] * 3, "S": [0.1] * 3}, "wash.K"), ("constants", {"gain": "x"}, "constants.gain"),
+     ("wash", {"K": [float("nan")] * 3, "S": [0.1] * 3}, "wash.K"), ("wash", {"K": [0.1] * 3, "S": ["a", 1, 2]}, "wash.S"), ("constants", {"gain": "x"}, "constants.gain"),
      ("constants", {"k_wash": -1.0}, "constants.k_wash"),
      ("light", [0.0, 0.0, 0.0], "light"), ("shading", "flat", "shading")],  # fmt: skip
 )

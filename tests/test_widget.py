@@ -303,7 +303,13 @@ def test_front_end_mixture_sliders(browser, tmp_path):
         first = host.canvas()
         assert psnr(first, rendered(scene)) >= 35
         before = host.frames()
+        host.slide("mix.P1", 0.5, wait=False)
+        # A drag goes on while Python bakes: the page holds the later values back and sends the last one once.
+        host.slide("mix.P1", 0.7, wait=False)
         host.slide("mix.P1", 0.9, wait=False)
+        assert host.page.evaluate("window.host.saved.map((c) => c.unlit ? 'unlit' : c.wash.mix.P1)") == [0.5]
+        assert host.sync() == [{"wash": {"mix": {"P4": 0.75, "P1": 0.5}, "amount": 0.02}}]
+        assert host.page.evaluate("window.host.saved.map((c) => c.wash.mix.P1)") == [0.9]
         host.sync()
         host.page.wait_for_function(f"window.diffwashWidgets[0].frames > {before}", timeout=30000)
         assert w.wash["mix"]["P1"] == pytest.approx(0.9) and w.wash["mix"]["P4"] == pytest.approx(0.75)

@@ -171,7 +171,20 @@ function valueOf(state, key) {
   return tail === undefined ? state[head] : head === "mix" ? state.mix[tail] : state[head][+tail];
 }
 
-function buildPanel(panel, model, config, s, redraw) {
+// A slider that re-bakes sends its change at once unless a bake is under way; then only the latest value, once the
+// table comes back (a drag does not queue a bake per input event in the kernel).
+function rebakeSender(model) {
+  const b = {waiting: false, dirty: false, timer: null};
+  b.save = () => {
+    if (b.waiting) { b.dirty = true; return; }
+    b.waiting = true; model.save_changes();
+    clearTimeout(b.timer); b.timer = setTimeout(b.done, 2000);  // no answer (a value Python refused): go on
+  };
+  b.done = () => { b.waiting = false; clearTimeout(b.timer); if (b.dirty) { b.dirty = false; b.save(); } };
+  return b;
+}
+
+function buildPanel(panel, model, config, s, rebake) {
   const controls = {constants: {}, wash: {}, unlit: {}};
   const modes = element("fieldset", {}, panel);
   element("legend", {}, modes, "thickness");
@@ -196,7 +209,8 @@ function buildPanel(panel, model, config, s, redraw) {
   element("legend", {}, constants, "constants (k_*: re-bake)");
   for (const spec of config.constants) {
     controls.constants[spec.key] = slider(constants, spec, s.constants[spec.key], (v) => {
-      model.set("constants", Object.assign({}, model.get("constants"), {[spec.key]: v})); model.save_changes();
+      model.set("constants", Object.assign({}, model.get("constants"), {[spec.key]: v}));
+      if (spec.rebake) rebake.save(); else model.save_changes();
     });
   }
   for (const glaze of ["wash", "unlit"]) {
@@ -204,7 +218,7 @@ function buildPanel(panel, model, config, s, redraw) {
     element("legend", {}, box, glaze + ": " + info.name + " (re-bake)");
     for (const spec of info.sliders) {
       controls[glaze][spec.key] = slider(box, spec, valueOf(model.get(glaze), spec.key), (v) => {
-        model.set(glaze, withValue(model.get(glaze), spec.key, v)); model.save_changes();
+        model.set(glaze, withValue(model.get(glaze), spec.key, v)); rebake.save();
       });
     }
   }
@@ -254,7 +268,8 @@ function render({model, el}) {
   let pending = false;
   const redraw = () => { if (!pending) { pending = true; requestAnimationFrame(() => { pending = false; api.draw(); }); } };
   api.redraw = redraw;
-  const controls = buildPanel(panel, model, config, s, redraw);
+  const rebake = rebakeSender(model);
+  const controls = buildPanel(panel, model, config, s, rebake);
   api.controls = controls;
   const status = () => {
     controls.status.textContent = model.get("status");
@@ -281,7 +296,7 @@ function render({model, el}) {
     on("lut_range", () => { s.lutRange = model.get("lut_range").slice(); redraw(); }),
     on("wash", () => { for (const k in controls.wash) controls.wash[k].set(valueOf(model.get("wash"), k)); }),
     on("unlit", () => { for (const k in controls.unlit) controls.unlit[k].set(valueOf(model.get("unlit"), k)); }),
-    on("status", status), on("bake_ms", status),
+    on("status", status), on("bake_ms", () => { rebake.done(); status(); }),
     on("export_folder", () => { controls.folder.value = model.get("export_folder"); }),
   ];
   // Left-drag orbits the camera about its target (the first frame is the scene's camera).

@@ -8,7 +8,11 @@ numerical stack.
 
 from __future__ import annotations
 
-__all__ = ["SHADING_MODES"]
+__all__ = ["SHADING_MODES", "EXPORT_TARGETS"]
 
 #: Where the wash and unlit thicknesses are computed: at every pixel, or at the vertices and interpolated.
 SHADING_MODES = ("per-pixel", "per-vertex")
+
+#: What `diffwash export --target` writes for: the shader language of the .vert/.frag files (GLSL 3.30, WebGL2),
+#: a three.js module and page, or a Blender scene (a script, its data, a .blend where `bpy` is installed).
+EXPORT_TARGETS = ("webgl2", "glsl330", "threejs", "blender")

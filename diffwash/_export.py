@@ -37,11 +37,13 @@ import numpy as np
 from . import lut as _lut
 from ._errors import DiffwashError
 from ._gltf import png16, with_material
-from ._glsl import SHADING_MODES, TARGETS, functions_source, shader_file_names, shader_sources, uniform_values
+from ._glsl import SHADING_MODES, functions_source, shader_file_names, shader_sources, uniform_values
 from ._io import atomic_folder
 from ._lazy import lazy
 from ._look_export import LOOK_FOLDER, LookExport, look_export, retarget, write_look
 from ._scene import Mesh, Scene, load_scene, scene_to_dict
+from ._blender import write_blender
+from ._choices import EXPORT_TARGETS
 from ._threejs import write_threejs
 from ._version import __version__
 from ._viewer import viewer_html
@@ -136,6 +138,18 @@ def _is_export(folder: Path) -> bool:
     return (folder / "viewer.html").is_file() and any(folder.glob("*.json"))
 
 
+def _check_blender(scene: Scene, kind: str) -> None:
+    """Refuse what the Blender target cannot draw: the watercolour look's passes, the R/T LUT."""
+    where = scene.path if scene.path is not None else None
+    if scene.watercolour is not None:
+        raise DiffwashError("the Blender target draws the plain model; the watercolour look's passes (an edge blur over "
+                            "the whole image, a G-buffer) are beyond shader nodes: export it for webgl2, glsl330 or "
+                            "threejs, or remove the \"watercolour\" object", file=where, field="watercolour")  # fmt: skip
+    if kind != "colour":
+        raise DiffwashError("the Blender target reads the colour LUT; R and T over a paper uniform (--rt) are for "
+                            "the GLSL targets", field="rt")  # fmt: skip
+
+
 def export(
     scene: Scene | str | os.PathLike,
     folder: str | os.PathLike,
@@ -171,13 +185,15 @@ def export(
 
     The paths written, in `folder`.
     """
-    if target not in TARGETS:
-        raise DiffwashError(f"must be one of {', '.join(TARGETS)}, got {target!r}", field="target")
+    if target not in EXPORT_TARGETS:
+        raise DiffwashError(f"must be one of {', '.join(EXPORT_TARGETS)}, got {target!r}", field="target")
     if fmt not in _lut.FORMATS:
         raise DiffwashError(f"must be one of {', '.join(_lut.FORMATS)}, got {fmt!r}", field="format")
     _lut.check_size(size)
     scene = _scene_of(scene)
     params = scene.params if params is None else params
+    if target == "blender":
+        _check_blender(scene, kind)
     folder = Path(folder)
     if folder.exists():
         if not folder.is_dir():
@@ -189,15 +205,19 @@ def export(
         raise DiffwashError("output folder's parent does not exist", file=folder.parent)
 
     table = _lut.bake(params, size, kind=kind)
-    # The look's passes for three.js are its WebGL2 shaders (RawShaderMaterials: look/ holds those).
-    look_target = "webgl2" if target == "threejs" else target
+    # The look's passes for three.js are its WebGL2 shaders (RawShaderMaterials: look/ holds those);
+    # the Blender target's shader files are GLSL 3.30 (its node groups are in blender_scene.py).
+    shader_target = "glsl330" if target == "blender" else target
+    look_target = "webgl2" if target == "threejs" else shader_target
     look = None if scene.watercolour is None else look_export(scene, params, target=look_target)
     with atomic_folder(folder) as tmp:
-        written = _write_plain(tmp, scene, params, table, target=target, fmt=fmt, kind=kind)
+        written = _write_plain(tmp, scene, params, table, target=shader_target, fmt=fmt, kind=kind)
         viewer_look = look if look is None or look_target == "webgl2" else retarget(look, "webgl2")
         written += _write_scene(tmp, folder, scene, params, table, look, viewer_look)
         if target == "threejs":
             written += write_threejs(tmp, scene, table, params=params, look=viewer_look)
+        if target == "blender":
+            written += write_blender(tmp, scene, table, params=params)
     return [folder / p.relative_to(tmp) for p in written]
 
 

@@ -25,7 +25,7 @@ from conftest import ROOT
 PACKAGE = ROOT / "diffwash"
 #: Optional dependencies, imported where they are used (extras, or only some platforms have them).
 OPTIONAL = {"glfw", "mitsuba", "drjit", "nvdiffrast", "torch", "playwright", "mixbox", "pymixbox", "rawpy",
-            "colour_checker_detection"}
+            "colour_checker_detection", "bpy", "mathutils"}
 
 
 def _module_name(path: Path) -> str:

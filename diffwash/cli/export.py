@@ -5,6 +5,9 @@ per-vertex/per-pixel). For a scene with a "watercolour" object it also writes lo
 passes (shaders, textures, passes.json, uniforms.json, README.md), which the viewer draws.
 --target threejs also writes diffwash-material.js (an ES module returning a THREE.ShaderMaterial),
 index.html (draws mesh.glb with it; serve the folder as static files) and three/ (three.js, MIT).
+--target blender also writes blender_scene.py, which builds the scene in Blender (python blender_scene.py
+--render OUT.png where Blender's bpy module is installed, or blender -b -P blender_scene.py -- --render
+OUT.png), its data blender_data.npz and, where bpy is installed, scene.blend (GLSL 3.30 shader files).
 The folder is written whole or not at all.
 """
 
@@ -21,7 +24,7 @@ from .bake import parse_lut_size
 def add_arguments(p) -> None:
     p.add_argument("scene", metavar="SCENE.json", help="scene file (a fitted scene file works as it is)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (must not exist or be empty)")
-    p.add_argument("--target", choices=list(diffwash.shaders.TARGETS), default="webgl2", help="shader language of the .vert/.frag files; threejs adds a three.js module and page (default: %(default)s)")
+    p.add_argument("--target", choices=list(diffwash.EXPORT_TARGETS), default="webgl2", help="shader language of the .vert/.frag files; threejs adds a three.js module and page, blender a script that builds the scene in Blender and a .blend (default: %(default)s)")
     p.add_argument("--size", default="256", metavar="N", help="LUT samples per axis, 2..4096, or NxM (default: %(default)s)")
     p.add_argument("--format", choices=list(diffwash.lut.FORMATS), default="png16", help="LUT file format (default: %(default)s)")
     p.add_argument("--rt", action="store_true", help="export the R/T LUT and shaders that composite over a paper uniform")
@@ -39,6 +42,7 @@ def run(args) -> int:
     top = [w.name for w in written if w.parent == out]
     look = [w for w in written if w.parent != out and w.relative_to(out).parts[0] == "look"]
     three = [w for w in written if w.parent != out and w.relative_to(out).parts[0] == "three"]
+    blender = [w.name for w in written if w.name in ("blender_scene.py", "scene.blend")]
     print(
         f"wrote {args.output}/: {', '.join(top)}"
         + (f", look/ ({len(look)} files: the watercolour look's passes, see look/README.md)" if look else "")
@@ -47,4 +51,8 @@ def run(args) -> int:
     print(f"open {args.output}/viewer.html in a browser with WebGL2")
     if three:
         print(f"three.js: serve the folder (python -m http.server -d {args.output}) and open index.html")
+    if blender:
+        script = out / "blender_scene.py"
+        print(f"Blender: python {script} --render OUT.png (with bpy installed), or blender -b -P {script} -- --render OUT.png"
+              + ("; or open " + str(out / "scene.blend") if "scene.blend" in blender else ""))
     return 0

@@ -1,0 +1,474 @@
+"""Build a diffwash scene in Blender (written by diffwash __VERSION__'s `diffwash export --target blender`).
+
+    python blender_scene.py [--render OUT.png] [--save OUT.blend]        # where Blender's bpy module is installed
+    blender -b -P blender_scene.py -- [--render OUT.png] [--save OUT.blend]
+    blender -P blender_scene.py                                         # opens Blender with the scene built
+
+It reads blender_data.npz beside it (the mesh and the baked LUT) and builds, in a fresh scene:
+
+- the mesh, with diffwash's vertex normals as the point attribute `diffwash_normal`;
+- the camera (diffwash's pinhole camera: the same matrix, vertical field of view, clip distances);
+- the world: the bare paper's colour;
+- node groups named for diffwash: `diffwash thickness` (the wash and unlit thicknesses at a point,
+  generated from diffwash.shading), `diffwash LUT` (the baked LUT over the paper, an image texture
+  read at a (wash, unlit) thickness) and `diffwash watercolour` (both, per pixel), whose inputs hold
+  the scene's light direction and constants (gain, bias, k_wash, ...);
+- the materials `diffwash per-pixel` and `diffwash per-vertex` (the latter reads the thicknesses that
+  the geometry-nodes modifier `diffwash per-vertex thickness` stores at the vertices), emission only;
+- render settings that draw what diffwash draws: the view transform "Standard" (display sRGB, no
+  tone curve), one sample at the pixel centre, no denoising, no dithering.
+
+Only the scene's data is specific to it (CONFIG below); the rest is the same for every scene.
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+CONFIG = "__CONFIG__"
+HERE = Path(__file__).resolve().parent
+SHADING_MODES = ("per-pixel", "per-vertex")
+_SOCKET = {1: "NodeSocketFloat", 3: "NodeSocketVector"}
+
+
+def arguments(argv):
+    p = argparse.ArgumentParser(prog="blender_scene.py", description=__doc__.split("\n")[0])
+    p.add_argument("--render", metavar="OUT.png", help="render the scene to this PNG (8-bit display sRGB)")
+    p.add_argument("--save", metavar="OUT.blend", help="save the scene as a .blend (the LUT packed into it)")
+    p.add_argument("--engine", choices=("auto", "eevee", "cycles"), default="auto",
+                   help="auto: EEVEE in a Blender with a window, Cycles on the CPU headless (default: %(default)s)")
+    p.add_argument("--size", metavar="WxH", help="image size (default: the scene's)")
+    p.add_argument("--shading", choices=SHADING_MODES, help="per-pixel or per-vertex thickness (default: the scene's)")
+    return p.parse_args(argv)
+
+
+def script_arguments():
+    """The script's own arguments: after `--` under `blender`, or all of them under `python`."""
+    if "--" in sys.argv:
+        return sys.argv[sys.argv.index("--") + 1:]
+    if sys.argv and Path(sys.argv[0]).resolve() == Path(__file__).resolve():
+        return sys.argv[1:]
+    return []
+
+
+# --- node programs ------------------------------------------------------------------------------
+
+
+def new_group(name, tree_type, inputs, outputs):
+    """A node group with the given (name, size, default) inputs and (name, size) outputs."""
+    import bpy
+
+    group = bpy.data.node_groups.new(name, tree_type)
+    for socket_name, size, default in inputs:
+        socket = group.interface.new_socket(socket_name, in_out="INPUT", socket_type=_SOCKET[size])
+        if default is not None:
+            socket.default_value = default
+    for socket_name, size in outputs:
+        group.interface.new_socket(socket_name, in_out="OUTPUT", socket_type=_SOCKET[size])
+    group_in, group_out = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    return group, group_in, group_out
+
+
+def build_program(tree, program, sources, x0=0):
+    """Instantiate a diffwash node program (`diffwash._blender.node_program`) in `tree`.
+
+    `sources`: input name -> output socket. Returns output name -> output socket.
+    """
+    kinds = {"math": "ShaderNodeMath", "vector": "ShaderNodeVectorMath",
+             "combine": "ShaderNodeCombineXYZ", "separate": "ShaderNodeSeparateXYZ"}
+    made, depth = [], []
+
+    def socket(ref):
+        if "input" in ref:
+            return sources[ref["input"]]
+        return made[ref["node"]].outputs[ref["output"]]
+
+    for node in program["nodes"]:
+        n = tree.nodes.new(kinds[node["op"]])
+        if node["operation"]:
+            n.operation = node["operation"]
+        d = 0
+        for i, ref in enumerate(node["inputs"]):
+            if "value" in ref:
+                n.inputs[i].default_value = ref["value"]
+            else:
+                tree.links.new(socket(ref), n.inputs[i])
+                d = max(d, depth[ref["node"]] + 1 if "node" in ref else 1)
+        depth.append(d)
+        n.location = (x0 + 170 * d, -110 * sum(1 for e in depth[:-1] if e == d))
+        n.hide = True
+        made.append(n)
+    return {name: socket(ref) for name, ref in program["outputs"].items()}, max(depth, default=0)
+
+
+def thickness_group(tree_type, name):
+    """`diffwash thickness`: the wash and unlit thicknesses at a point, diffwash.shading's program."""
+    program = CONFIG["thickness"]
+    labels = {"normal": "Normal", "view": "Incoming", "light_direction": "Light Direction"}
+    defaults = {"light_direction": CONFIG["light_direction"], **CONFIG["constants"]}
+    inputs = [(labels.get(k, k), size, defaults.get(k)) for k, size in program["inputs"]]
+    group, gi, go = new_group(name, tree_type, inputs, [("Wash", 1), ("Unlit", 1)])
+    sources = {k: gi.outputs[labels.get(k, k)] for k, _ in program["inputs"]}
+    outs, width = build_program(group, program, sources, x0=200)
+    group.links.new(outs["wash"], go.inputs["Wash"])
+    group.links.new(outs["unlit"], go.inputs["Unlit"])
+    go.location = (200 + 170 * (width + 1), 0)
+    return group
+
+
+def lut_image():
+    """The baked LUT as a float image, linear values ("Non-Color"), the image's top row unlit = 0."""
+    import bpy
+
+    lut = np.load(HERE / "blender_data.npz")["lut"]
+    rows, cols = lut.shape[:2]
+    image = bpy.data.images.new("diffwash LUT", cols, rows, alpha=False, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"  # before the pixels: changing it regenerates the image
+    image.use_half_precision = False
+    rgba = np.ones((rows, cols, 4), np.float32)
+    rgba[..., :3] = lut
+    image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())  # Blender's rows run from the bottom
+    image.update()
+    image.file_format = "OPEN_EXR"
+    image.pack()
+    return image
+
+
+def _math(tree, operation, a, b, c=None, clamp=False):
+    n = tree.nodes.new("ShaderNodeMath")
+    n.operation, n.use_clamp = operation, clamp
+    for i, v in enumerate((a, b, c)):
+        if v is None:
+            continue
+        if isinstance(v, (int, float)):
+            n.inputs[i].default_value = v
+        else:
+            tree.links.new(v, n.inputs[i])
+    return n.outputs[0]
+
+
+def lut_group(image):
+    """`diffwash LUT`: the colour over the paper at a (wash, unlit) thickness, from the baked LUT.
+
+    docs/realtime.md's addressing: t = clamp(thickness / max, 0, 1) (0 where max = 0), uv = (t (size - 1)
+    + 0.5) / size, so bilinear filtering runs between the texel centres; v counts from the image's top.
+    """
+    lut = CONFIG["lut"]
+    cols, rows = lut["size"]
+    inputs = [("Wash", 1, 0.0), ("Unlit", 1, 0.0), ("LUT Wash Max", 1, lut["wash_max"]), ("LUT Unlit Max", 1, lut["unlit_max"])]
+    group, gi, go = new_group("diffwash LUT", "ShaderNodeTree", inputs, [("Colour", 3)])
+    uv = []
+    for thickness, top, n in (("Wash", "LUT Wash Max", cols), ("Unlit", "LUT Unlit Max", rows)):
+        t = _math(group, "DIVIDE", gi.outputs[thickness], gi.outputs[top], clamp=True)  # Blender's divide by 0 is 0
+        uv.append(_math(group, "DIVIDE", _math(group, "MULTIPLY_ADD", t, float(n - 1), 0.5), float(n)))
+    uv[1] = _math(group, "SUBTRACT", 1.0, uv[1])
+    combine = group.nodes.new("ShaderNodeCombineXYZ")
+    group.links.new(uv[0], combine.inputs[0])
+    group.links.new(uv[1], combine.inputs[1])
+    texture = group.nodes.new("ShaderNodeTexImage")
+    texture.image, texture.interpolation, texture.extension = image, "Linear", "EXTEND"
+    group.links.new(combine.outputs[0], texture.inputs["Vector"])
+    group.links.new(texture.outputs["Color"], go.inputs["Colour"])
+    for i, n in enumerate((gi, combine, texture, go)):
+        n.location = (-400 + 300 * i, 0)
+    return group
+
+
+def watercolour_group(thickness, lut):
+    """`diffwash watercolour`: thickness per point, then the LUT: the seed's shading in one group."""
+    inputs = [(s.name, 3 if s.socket_type == "NodeSocketVector" else 1, s.default_value if s.name not in ("Normal", "Incoming") else None)
+              for s in thickness.interface.items_tree if s.in_out == "INPUT"]
+    group, gi, go = new_group("diffwash watercolour", "ShaderNodeTree", inputs, [("Colour", 3), ("Wash", 1), ("Unlit", 1)])
+    t = group.nodes.new("ShaderNodeGroup")
+    t.node_tree = thickness
+    for name, _, _ in inputs:
+        group.links.new(gi.outputs[name], t.inputs[name])
+    c = group.nodes.new("ShaderNodeGroup")
+    c.node_tree = lut
+    for name in ("Wash", "Unlit"):
+        group.links.new(t.outputs[name], c.inputs[name])
+        group.links.new(t.outputs[name], go.inputs[name])
+    group.links.new(c.outputs["Colour"], go.inputs["Colour"])
+    for i, n in enumerate((gi, t, c, go)):
+        n.location = (-300 + 250 * i, 0)
+    return group
+
+
+# --- materials, geometry nodes, mesh, camera, world ---------------------------------------------------
+
+
+def _emit(mat, colour, backfacing):
+    """Emission of `colour` (what diffwash draws), and where back faces are culled, nothing on them."""
+    tree = mat.node_tree
+    emission = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(colour, emission.inputs["Color"])
+    emission.inputs["Strength"].default_value = 1.0
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    shader = emission.outputs[0]
+    if CONFIG["cull_backfaces"]:
+        mix = tree.nodes.new("ShaderNodeMixShader")
+        tree.links.new(backfacing, mix.inputs[0])
+        tree.links.new(shader, mix.inputs[1])
+        tree.links.new(tree.nodes.new("ShaderNodeBsdfTransparent").outputs[0], mix.inputs[2])
+        shader = mix.outputs[0]
+        mat.use_backface_culling = True
+    tree.links.new(shader, out.inputs["Surface"])
+    mat.cycles.emission_sampling = "NONE"  # seen by the camera only: no light tree over 100k emitters
+    out.location = (900, 0)
+
+
+def _new_material(name):
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    mat.node_tree.nodes.clear()
+    mat.use_fake_user = True
+    return mat
+
+
+def _turned(tree, vector, backfacing):
+    """`vector`, reversed on back faces where they are drawn (OpenGL's two-sided lighting)."""
+    if CONFIG["cull_backfaces"]:
+        return vector
+    sign = _math(tree, "MULTIPLY_ADD", backfacing, -2.0, 1.0)
+    scale = tree.nodes.new("ShaderNodeVectorMath")
+    scale.operation = "SCALE"
+    tree.links.new(vector, scale.inputs[0])
+    tree.links.new(sign, scale.inputs["Scale"])
+    return scale.outputs[0]
+
+
+def per_pixel_material(watercolour):
+    mat = _new_material("diffwash per-pixel")
+    tree = mat.node_tree
+    geometry = tree.nodes.new("ShaderNodeNewGeometry")
+    normal = tree.nodes.new("ShaderNodeAttribute")
+    normal.attribute_type, normal.attribute_name = "GEOMETRY", "diffwash_normal"
+    to_world = tree.nodes.new("ShaderNodeVectorTransform")
+    to_world.vector_type, to_world.convert_from, to_world.convert_to = "NORMAL", "OBJECT", "WORLD"
+    tree.links.new(normal.outputs["Vector"], to_world.inputs[0])
+    group = tree.nodes.new("ShaderNodeGroup")
+    group.node_tree = watercolour
+    tree.links.new(_turned(tree, to_world.outputs[0], geometry.outputs["Backfacing"]), group.inputs["Normal"])
+    tree.links.new(geometry.outputs["Incoming"], group.inputs["Incoming"])
+    _emit(mat, group.outputs["Colour"], geometry.outputs["Backfacing"])
+    group.location, geometry.location, normal.location, to_world.location = (400, 0), (0, 300), (-200, 0), (100, 0)
+    return mat
+
+
+def per_vertex_material(lut):
+    mat = _new_material("diffwash per-vertex")
+    tree = mat.node_tree
+    geometry = tree.nodes.new("ShaderNodeNewGeometry")
+    front, back = (tree.nodes.new("ShaderNodeAttribute") for _ in range(2))
+    front.attribute_name, back.attribute_name = "diffwash_thickness", "diffwash_thickness_back"
+    thickness = front.outputs["Vector"]
+    if not CONFIG["cull_backfaces"]:
+        mix = tree.nodes.new("ShaderNodeMix")
+        mix.data_type = "VECTOR"
+        tree.links.new(geometry.outputs["Backfacing"], mix.inputs["Factor"])
+        tree.links.new(front.outputs["Vector"], mix.inputs["A"])
+        tree.links.new(back.outputs["Vector"], mix.inputs["B"])
+        thickness = mix.outputs["Result"]
+    split = tree.nodes.new("ShaderNodeSeparateXYZ")
+    tree.links.new(thickness, split.inputs[0])
+    group = tree.nodes.new("ShaderNodeGroup")
+    group.node_tree = lut
+    tree.links.new(split.outputs[0], group.inputs["Wash"])
+    tree.links.new(split.outputs[1], group.inputs["Unlit"])
+    _emit(mat, group.outputs["Colour"], geometry.outputs["Backfacing"])
+    group.location = (500, 0)
+    return mat
+
+
+def per_vertex_modifier(obj, camera):
+    """`diffwash per-vertex thickness`: geometry nodes storing the thicknesses at the vertices (front and back)."""
+    import bpy
+
+    thickness = thickness_group("GeometryNodeTree", "diffwash thickness (geometry)")
+    group = bpy.data.node_groups.new("diffwash per-vertex thickness", "GeometryNodeTree")
+    group.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    group.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    gi, go = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    normal = group.nodes.new("GeometryNodeInputNamedAttribute")
+    normal.data_type = "FLOAT_VECTOR"
+    normal.inputs["Name"].default_value = "diffwash_normal"
+    eye = group.nodes.new("GeometryNodeObjectInfo")
+    eye.transform_space = "RELATIVE"
+    eye.inputs["Object"].default_value = camera
+    view = group.nodes.new("ShaderNodeVectorMath")
+    view.operation = "SUBTRACT"
+    group.links.new(eye.outputs["Location"], view.inputs[0])
+    group.links.new(group.nodes.new("GeometryNodeInputPosition").outputs[0], view.inputs[1])
+    flipped = group.nodes.new("ShaderNodeVectorMath")
+    flipped.operation = "SCALE"
+    flipped.inputs["Scale"].default_value = -1.0
+    group.links.new(normal.outputs["Attribute"], flipped.inputs[0])
+    geometry = gi.outputs["Geometry"]
+    for name, n in (("diffwash_thickness", normal.outputs["Attribute"]), ("diffwash_thickness_back", flipped.outputs[0])):
+        t = group.nodes.new("GeometryNodeGroup")
+        t.node_tree = thickness
+        group.links.new(n, t.inputs["Normal"])
+        group.links.new(view.outputs[0], t.inputs["Incoming"])
+        pack = group.nodes.new("ShaderNodeCombineXYZ")
+        group.links.new(t.outputs["Wash"], pack.inputs[0])
+        group.links.new(t.outputs["Unlit"], pack.inputs[1])
+        store = group.nodes.new("GeometryNodeStoreNamedAttribute")
+        store.data_type, store.domain = "FLOAT_VECTOR", "POINT"
+        store.inputs["Name"].default_value = name
+        group.links.new(geometry, store.inputs["Geometry"])
+        group.links.new(pack.outputs[0], store.inputs["Value"])
+        geometry = store.outputs["Geometry"]
+    group.links.new(geometry, go.inputs["Geometry"])
+    modifier = obj.modifiers.new("diffwash per-vertex thickness", "NODES")
+    modifier.node_group = group
+    return modifier
+
+
+def build_mesh():
+    import bpy
+
+    data = np.load(HERE / "blender_data.npz")
+    vertices, faces, normals = data["vertices"], data["faces"], data["normals"]
+    mesh = bpy.data.meshes.new("diffwash mesh")
+    mesh.vertices.add(len(vertices))
+    mesh.vertices.foreach_set("co", vertices.astype(np.float32).ravel())
+    mesh.loops.add(faces.size)
+    mesh.loops.foreach_set("vertex_index", faces.astype(np.int32).ravel())
+    mesh.polygons.add(len(faces))
+    mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, 3, dtype=np.int32))
+    mesh.update(calc_edges=True)
+    attribute = mesh.attributes.new("diffwash_normal", "FLOAT_VECTOR", "POINT")
+    attribute.data.foreach_set("vector", normals.astype(np.float32).ravel())
+    mesh.shade_smooth()
+    obj = bpy.data.objects.new("diffwash", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def build_camera():
+    """diffwash's pinhole camera: its object matrix, vertical field of view and clip distances."""
+    import bpy
+    from mathutils import Matrix
+
+    c = CONFIG["camera"]
+    cam = bpy.data.cameras.new("diffwash camera")
+    cam.sensor_fit = "VERTICAL"
+    cam.angle_y = np.radians(c["fov_y"])
+    cam.clip_start, cam.clip_end = c["near"], c["far"]
+    obj = bpy.data.objects.new("diffwash camera", cam)
+    obj.matrix_world = Matrix(c["matrix_world"])
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.scene.camera = obj
+    return obj
+
+
+def build_world():
+    """The bare paper where no mesh is: the world's background, emission of the paper's linear colour."""
+    import bpy
+
+    world = bpy.data.worlds.new("diffwash paper")
+    world.use_nodes = True
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (*CONFIG["paper"], 1.0)
+    background.inputs["Strength"].default_value = 1.0
+    bpy.context.scene.world = world
+
+
+def build(shading):
+    """The whole scene, in a fresh file."""
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    obj, camera = build_mesh(), build_camera()
+    build_world()
+    lut = lut_group(lut_image())
+    watercolour = watercolour_group(thickness_group("ShaderNodeTree", "diffwash thickness"), lut)
+    materials = {"per-pixel": per_pixel_material(watercolour), "per-vertex": per_vertex_material(lut)}
+    obj.data.materials.append(materials[shading])
+    modifier = per_vertex_modifier(obj, camera)
+    modifier.show_viewport = modifier.show_render = shading == "per-vertex"
+    return obj
+
+
+# --- rendering ------------------------------------------------------------------------------------
+
+
+def render_settings(size):
+    """The scene's size; Standard view transform (sRGB, no tone curve), no dithering, 8-bit RGB PNG."""
+    import bpy
+
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage, scene.render.pixel_aspect_x, scene.render.pixel_aspect_y = 100, 1, 1
+    scene.display_settings.display_device = "sRGB"
+    scene.view_settings.view_transform, scene.view_settings.look = "Standard", "None"
+    scene.view_settings.exposure, scene.view_settings.gamma = 0.0, 1.0
+    scene.render.dither_intensity = 0.0
+    scene.render.film_transparent = False
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_mode, scene.render.image_settings.color_depth = "RGB", "8"
+    # EEVEE: one sample, no reconstruction filter (the pixel centre, as diffwash samples it).
+    scene.eevee.taa_render_samples = 1
+    scene.render.filter_size = 0.0
+    # Cycles: one camera sample per pixel, within 0.005 px of its centre; no bounces, no denoising.
+    scene.cycles.device = "CPU"
+    scene.cycles.samples, scene.cycles.use_adaptive_sampling, scene.cycles.use_denoising = 1, False, False
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 0.01
+    scene.cycles.max_bounces = 0
+    scene.cycles.seed = 0
+
+
+def render(out, engine, size):
+    """Render to `out`: `engine="auto"` is EEVEE in a Blender with a window (Cycles where it fails), Cycles headless."""
+    import bpy
+
+    scene = bpy.context.scene
+    scene.render.filepath = os.path.abspath(out)
+    # Headless (`blender -b`, the bpy module) Blender cannot say which GPU it would draw with, and EEVEE on
+    # Mesa's software llvmpipe draws stray texels (docs/blender.md): there, auto means Cycles on the CPU.
+    eevee = ["BLENDER_EEVEE_NEXT", "CYCLES"] if not bpy.app.background else ["CYCLES"]
+    engines = {"auto": eevee, "eevee": ["BLENDER_EEVEE_NEXT"], "cycles": ["CYCLES"]}[engine]
+    for i, name in enumerate(engines):
+        scene.render.engine = name
+        start = time.perf_counter()
+        try:
+            bpy.ops.render.render(write_still=True)
+        except RuntimeError as e:
+            if i + 1 == len(engines):
+                raise
+            print(f"blender_scene.py: {name} does not run here ({str(e).strip().splitlines()[-1]}); trying {engines[i + 1]}")
+            continue
+        print(f"blender_scene.py: rendered {out} ({size[0]}x{size[1]}) with {name} in {time.perf_counter() - start:.2f} s")
+        return name
+    return None
+
+
+def main(argv=None):
+    global CONFIG
+    CONFIG = json.loads(CONFIG) if isinstance(CONFIG, str) else CONFIG
+    args = arguments(script_arguments() if argv is None else argv)
+    size = (CONFIG["width"], CONFIG["height"])
+    if args.size:
+        w, _, h = args.size.lower().partition("x")
+        size = (int(w), int(h))
+    build(args.shading or CONFIG["shading"])
+    render_settings(size)
+    if args.save:
+        import bpy
+
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.save), compress=True)
+        print(f"blender_scene.py: saved {args.save}")
+    if args.render:
+        render(args.render, args.engine, size)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,167 @@
+"""The Blender target: the node program against the model (no Blender needed), the export's files and bad
+input, and the exported knot rendered headless by Blender (`bpy`, Cycles on the CPU) against `diffwash render`."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from PIL import Image
+
+import diffwash
+from diffwash import shading
+from diffwash._blender import BLENDER_FILES, blender_config, bpy_available, evaluate_program, thickness_program
+from diffwash._export import EXPORT_FILES, export
+
+from conftest import DATA, ROOT
+from test_viewer import psnr
+
+KNOT = DATA / "scenes" / "knot.json"
+SHOT = ROOT / "docs" / "images" / "blender.png"
+needs_bpy = pytest.mark.skipif(not bpy_available(), reason="needs Blender's bpy module (pip install 'diffwash[blender]', bpy 4.2)")
+
+
+def scene_file(folder, **overrides):
+    """The knot scene as a file in `folder` (its mesh by absolute path), with `overrides`."""
+    data = json.loads(KNOT.read_text())
+    data["mesh"] = str((KNOT.parent / data["mesh"]).resolve())
+    data.update(overrides)
+    path = folder / "knot.json"
+    path.write_text(json.dumps(data))
+    return path
+
+
+def thickness_inputs(params, N, V, L):
+    return {"normal": N, "view": V, "light_direction": L, **{k: np.asarray(getattr(params, k), np.float64) for k in shading.CONSTANTS}}
+
+
+def model_thicknesses(params, N, V, L):
+    """What the shaders' `main`s compute: N, L and V normalised, then `shading.thicknesses`."""
+    n, l_, v = (shading.safe_normalize(np.asarray(x, np.float64)) for x in (N, L, V))
+    return [np.asarray(t) for t in shading.thicknesses(n, l_, v, params)]
+
+
+def test_thickness_program_is_the_model():
+    """The node program, run as Blender's nodes compute, is `shading.thicknesses`: at random points, on the
+    highlight (H = N), opposite the light, at L = -V (H = 0) and with zero vectors (safe normalise)."""
+    params = diffwash.load_scene(KNOT).params
+    rng = np.random.default_rng(0)
+    N, V = rng.normal(size=(2000, 3)), rng.normal(size=(2000, 3)) * 3
+    L = np.array([1.0, 1.2, 0.8])
+    edges = np.array([[L, L, L], [-L, L, L], [L, -L, L], [L, np.zeros(3), L], [np.zeros(3), L, L]])
+    N, V = np.concatenate([N, edges[:, 0]]), np.concatenate([V, edges[:, 1]])
+    got = evaluate_program(thickness_program(), thickness_inputs(params, N, V, L))
+    want = model_thicknesses(params, N, V, L)
+    np.testing.assert_allclose(got["wash"], want[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got["unlit"], want[1], rtol=0, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    gain=st.floats(0, 1), bias=st.floats(0, 1), shininess=st.floats(0, 200), wash_reduction=st.floats(0, 1),
+    k_unlit=st.floats(0, 5), k_specular=st.floats(0, 3), seed=st.integers(0, 2**16),
+)  # fmt: skip
+def test_thickness_program_follows_the_constants(gain, bias, shininess, wash_reduction, k_unlit, k_specular, seed):
+    """For any constants (gain and bias at 0 and 1 included: the model clamps them), program = model."""
+    base = diffwash.load_scene(KNOT).params
+    params = diffwash.Params(wash=base.wash, unlit=base.unlit, gain=gain, bias=bias, shininess=shininess,
+                             wash_reduction=wash_reduction, k_unlit=k_unlit, k_specular=k_specular)  # fmt: skip
+    rng = np.random.default_rng(seed)
+    N, V, L = rng.normal(size=(64, 3)), rng.normal(size=(64, 3)), rng.normal(size=3)
+    got = evaluate_program(thickness_program(), thickness_inputs(params, N, V, L))
+    want = model_thicknesses(params, N, V, L)
+    assert np.all(np.isfinite(got["wash"])) and np.all(np.isfinite(got["unlit"]))
+    np.testing.assert_allclose(got["wash"], want[0], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(got["unlit"], want[1], rtol=1e-9, atol=1e-9)
+
+
+def test_config_camera_and_constants_come_from_the_scene():
+    scene = diffwash.load_scene(KNOT)
+    table = diffwash.lut.bake(scene, 8)
+    config = blender_config(scene, table)
+    cam = np.asarray(config["camera"]["matrix_world"])
+    # Blender's camera object matrix is the inverse of diffwash's view: it sits at the eye, looks down its -z.
+    np.testing.assert_allclose(cam[:3, 3], scene.camera.eye, atol=1e-12)
+    look = -cam[:3, 2]
+    towards = np.asarray(scene.camera.target) - np.asarray(scene.camera.eye)
+    np.testing.assert_allclose(look, towards / np.linalg.norm(towards), atol=1e-12)
+    assert config["camera"]["fov_y"] == 40 and (config["width"], config["height"]) == (512, 512)
+    assert config["constants"]["shininess"] == 20 and config["light_direction"] == [1.0, 1.2, 0.8]
+    assert config["lut"] == {"size": [8, 8], "wash_max": 1.0, "unlit_max": 1.0}
+    assert config["cull_backfaces"] and config["shading"] == "per-pixel"
+    json.dumps(config)  # embedded in the script as JSON
+
+
+def test_export_writes_the_script_and_its_data(tmp_path):
+    """Without `bpy` too: the script and its data (the .blend is written only where `bpy` is importable)."""
+    folder = tmp_path / "knot"
+    written = export(scene_file(tmp_path, backfaces="both"), folder, target="blender", size=16)
+    names = {p.name for p in folder.iterdir()}
+    assert names == {*EXPORT_FILES, *BLENDER_FILES[: 3 if bpy_available() else 2]}
+    assert {p.name for p in written} == names
+    script = (folder / "blender_scene.py").read_text()
+    assert "__CONFIG__" not in script and "diffwash thickness" in script and "import bpy" in script
+    compile(script, "blender_scene.py", "exec")
+    data = np.load(folder / "blender_data.npz")
+    scene = diffwash.load_scene(KNOT)
+    assert data["lut"].shape == (16, 16, 3) and data["faces"].shape == scene.mesh.faces.shape
+    np.testing.assert_allclose(data["lut"], diffwash.lut.bake(scene, 16).values, atol=1e-6)
+    # The shader files of the Blender target are GLSL 3.30.
+    assert (folder / "watercolour_per_pixel.frag").read_text().startswith("#version 330 core")
+
+
+def one_line(r, *needles):
+    assert r.returncode == 2, r.stderr
+    err = r.stderr.strip()
+    assert "\n" not in err and "Traceback" not in err and err.startswith("diffwash") and "error:" in err, err
+    for n in needles:
+        assert n in err, err
+
+
+def test_bad_input(run_cli, tmp_path):
+    """An unknown target, an output folder holding the scene, the watercolour look, an R/T LUT: one line, exit 2."""
+    scene = scene_file(tmp_path)
+    one_line(run_cli("export", scene, "-o", tmp_path / "out", "--target", "maya"), "maya")
+    one_line(run_cli("export", scene, "-o", tmp_path, "--target", "blender"), "--output")
+    look = scene_file(tmp_path, watercolour={})
+    one_line(run_cli("export", look, "-o", tmp_path / "out", "--target", "blender"), "knot.json", "watercolour")
+    one_line(run_cli("export", scene, "-o", tmp_path / "out", "--target", "blender", "--rt"), "rt")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["knot.json"]
+
+
+def run_script(folder, *args):
+    """`python DIR/blender_scene.py ARGS` in a fresh process, as a user runs it where bpy is installed."""
+    r = subprocess.run([sys.executable, str(folder / "blender_scene.py"), *map(str, args)],
+                       capture_output=True, text=True, timeout=600, check=False)  # fmt: skip
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    return r
+
+
+def reference(path, mode):
+    scene = diffwash.load_scene(path, shading=mode)
+    return np.round(diffwash.colorimetry.to_display(np.asarray(diffwash.render(scene))) * 255) / 255
+
+
+@needs_bpy
+@pytest.mark.parametrize("mode", ["per-pixel", "per-vertex"])
+def test_blender_draws_the_knot_as_diffwash_does(run_cli, tmp_path, mode):
+    """The knot (100k triangles) at 256x256, exported through the command line and rendered by Blender headless
+    (Cycles on the CPU, one sample at each pixel centre, Standard view transform), against `diffwash render`."""
+    scene = scene_file(tmp_path, image={"width": 256, "height": 256}, shading=mode)
+    r = run_cli("export", scene, "-o", tmp_path / "out", "--target", "blender")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "out" / "scene.blend").is_file() and "blender_scene.py --render" in r.stdout
+    run_script(tmp_path / "out", "--render", tmp_path / "blender.png")
+    shot = np.asarray(Image.open(tmp_path / "blender.png").convert("RGB"), np.float64) / 255
+    ref = reference(scene, mode)
+    assert shot.shape == ref.shape == (256, 256, 3)
+    db = psnr(shot, ref)
+    off = int((np.abs(shot - ref).max(axis=-1) > 2 / 255).sum())
+    print(f"Blender (Cycles), knot 256x256 {mode}: {db:.1f} dB against diffwash render, {off} pixels off by more than 2 levels")
+    assert db >= 45 and off <= 10
+    if mode == "per-pixel" and os.environ.get("DIFFWASH_DOCS_IMAGES"):  # docs/blender.md's picture is this render
+        Image.open(tmp_path / "blender.png").save(SHOT, optimize=True)

@@ -24,6 +24,7 @@ Only the scene's data is specific to it (CONFIG below); the rest is the same for
 import argparse
 import json
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -36,14 +37,22 @@ SHADING_MODES = ("per-pixel", "per-vertex")
 _SOCKET = {1: "NodeSocketFloat", 3: "NodeSocketVector"}
 
 
+def image_size(text):
+    w, _, h = text.lower().partition("x")
+    if not (w.isdigit() and h.isdigit() and 0 < int(w) <= 16384 and 0 < int(h) <= 16384):
+        raise argparse.ArgumentTypeError(f"must be WxH, 1 to 16384 pixels each, e.g. 512x512, got {text!r}")
+    return int(w), int(h)
+
+
 def arguments(argv):
     p = argparse.ArgumentParser(prog="blender_scene.py", description=__doc__.split("\n")[0])
     p.add_argument("--render", metavar="OUT.png", help="render the scene to this PNG (8-bit display sRGB)")
     p.add_argument("--save", metavar="OUT.blend", help="save the scene as a .blend (the LUT packed into it)")
     p.add_argument("--engine", choices=("auto", "eevee", "cycles"), default="auto",
-                   help="auto: EEVEE in a Blender with a window, Cycles on the CPU headless (default: %(default)s)")
-    p.add_argument("--size", metavar="WxH", help="image size (default: the scene's)")
+                   help="auto: EEVEE where it draws (a GPU, or Mesa's llvmpipe), else Cycles on the CPU (default: %(default)s)")
+    p.add_argument("--size", metavar="WxH", type=image_size, help="image size (default: the scene's)")
     p.add_argument("--shading", choices=SHADING_MODES, help="per-pixel or per-vertex thickness (default: the scene's)")
+    p.add_argument("--probe-eevee", action="store_true", help=argparse.SUPPRESS)
     return p.parse_args(argv)
 
 
@@ -152,30 +161,59 @@ def _math(tree, operation, a, b, c=None, clamp=False):
     return n.outputs[0]
 
 
+def _texel_pair(tree, t, n):
+    """Texel coordinates of the two samples around `t` in [0, 1] on an axis of `n` texels, and the weight between them.
+
+    docs/realtime.md's addressing: the thickness range maps onto the texel centres, so the position in texels is
+    x = t (n - 1); the samples are floor(x) and the next one (the last texel at t = 1), weighted x - floor(x).
+    """
+    x = _math(tree, "MULTIPLY", t, float(n - 1))
+    i0 = _math(tree, "FLOOR", x, 0.0)
+    i1 = _math(tree, "MINIMUM", _math(tree, "ADD", i0, 1.0), float(n - 1))
+    centres = [_math(tree, "DIVIDE", _math(tree, "ADD", i, 0.5), float(n)) for i in (i0, i1)]
+    return centres, _math(tree, "SUBTRACT", x, i0)
+
+
+def _mix(tree, a, b, f):
+    """a + (b - a) f, channel by channel."""
+    mix = tree.nodes.new("ShaderNodeMix")
+    mix.data_type, mix.clamp_factor = "VECTOR", False
+    tree.links.new(f, mix.inputs["Factor"])
+    tree.links.new(a, mix.inputs["A"])
+    tree.links.new(b, mix.inputs["B"])
+    return mix.outputs["Result"]
+
+
 def lut_group(image):
     """`diffwash LUT`: the colour over the paper at a (wash, unlit) thickness, from the baked LUT.
 
-    docs/realtime.md's addressing: t = clamp(thickness / max, 0, 1) (0 where max = 0), uv = (t (size - 1)
-    + 0.5) / size, so bilinear filtering runs between the texel centres; v counts from the image's top.
+    t = clamp(thickness / max, 0, 1) (0 where max = 0) on each axis, then bilinear interpolation between the
+    texel centres (docs/realtime.md), written out: four "Closest" reads and three mixes, because EEVEE reads a
+    "Linear" image texture through mipmaps, which a LUT must not be (its texels are not a picture).
     """
     lut = CONFIG["lut"]
     cols, rows = lut["size"]
     inputs = [("Wash", 1, 0.0), ("Unlit", 1, 0.0), ("LUT Wash Max", 1, lut["wash_max"]), ("LUT Unlit Max", 1, lut["unlit_max"])]
     group, gi, go = new_group("diffwash LUT", "ShaderNodeTree", inputs, [("Colour", 3)])
-    uv = []
+    axes = []
     for thickness, top, n in (("Wash", "LUT Wash Max", cols), ("Unlit", "LUT Unlit Max", rows)):
         t = _math(group, "DIVIDE", gi.outputs[thickness], gi.outputs[top], clamp=True)  # Blender's divide by 0 is 0
-        uv.append(_math(group, "DIVIDE", _math(group, "MULTIPLY_ADD", t, float(n - 1), 0.5), float(n)))
-    uv[1] = _math(group, "SUBTRACT", 1.0, uv[1])
-    combine = group.nodes.new("ShaderNodeCombineXYZ")
-    group.links.new(uv[0], combine.inputs[0])
-    group.links.new(uv[1], combine.inputs[1])
-    texture = group.nodes.new("ShaderNodeTexImage")
-    texture.image, texture.interpolation, texture.extension = image, "Linear", "EXTEND"
-    group.links.new(combine.outputs[0], texture.inputs["Vector"])
-    group.links.new(texture.outputs["Color"], go.inputs["Colour"])
-    for i, n in enumerate((gi, combine, texture, go)):
-        n.location = (-400 + 300 * i, 0)
+        axes.append(_texel_pair(group, t, n))
+    (us, fu), (vs, fv) = axes
+    texels = {}
+    for a, u in enumerate(us):
+        for b, v in enumerate(vs):
+            uv = group.nodes.new("ShaderNodeCombineXYZ")
+            group.links.new(u, uv.inputs[0])
+            group.links.new(_math(group, "SUBTRACT", 1.0, v), uv.inputs[1])  # Blender's images start at the bottom row
+            texture = group.nodes.new("ShaderNodeTexImage")
+            texture.image, texture.interpolation, texture.extension = image, "Closest", "EXTEND"
+            texture.location = (600, -300 * (2 * a + b))
+            group.links.new(uv.outputs[0], texture.inputs["Vector"])
+            texels[a, b] = texture.outputs["Color"]
+    top, bottom = _mix(group, texels[0, 0], texels[1, 0], fu), _mix(group, texels[0, 1], texels[1, 1], fu)
+    group.links.new(_mix(group, top, bottom, fv), go.inputs["Colour"])
+    gi.location, go.location = (-400, 0), (1200, 0)
     return group
 
 
@@ -425,39 +463,62 @@ def render_settings(size):
     scene.cycles.seed = 0
 
 
+def probe_eevee():
+    """Render 4x4 pixels of an empty scene with EEVEE (the child process of `eevee_runs`)."""
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("probe", bpy.data.cameras.new("probe"))
+    scene.collection.objects.link(camera)
+    scene.camera, scene.render.engine = camera, "BLENDER_EEVEE_NEXT"
+    scene.render.resolution_x = scene.render.resolution_y = 4
+    bpy.ops.render.render()
+
+
+def eevee_runs():
+    """Whether EEVEE draws here: Blender with a window does; headless, a child process tries (where no OpenGL
+    context can be made, Blender aborts, which no exception would report)."""
+    import bpy
+
+    if not bpy.app.background:
+        return True
+    script = str(Path(__file__).resolve())
+    if bpy.app.binary_path:  # blender -b -P: the same Blender
+        command = [bpy.app.binary_path, "-b", "--factory-startup", "-P", script, "--", "--probe-eevee"]
+    else:  # the bpy module: the same Python
+        command = [sys.executable, script, "--probe-eevee"]
+    try:
+        done = subprocess.run(command, capture_output=True, timeout=300, check=False)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return done.returncode == 0
+
+
 def render(out, engine, size):
-    """Render to `out`: `engine="auto"` is EEVEE in a Blender with a window (Cycles where it fails), Cycles headless."""
+    """Render to `out`: `engine="auto"` is EEVEE where it draws (a GPU, or Mesa's llvmpipe), else Cycles on the CPU."""
     import bpy
 
     scene = bpy.context.scene
     scene.render.filepath = os.path.abspath(out)
-    # Headless (`blender -b`, the bpy module) Blender cannot say which GPU it would draw with, and EEVEE on
-    # Mesa's software llvmpipe draws stray texels (docs/blender.md): there, auto means Cycles on the CPU.
-    eevee = ["BLENDER_EEVEE_NEXT", "CYCLES"] if not bpy.app.background else ["CYCLES"]
-    engines = {"auto": eevee, "eevee": ["BLENDER_EEVEE_NEXT"], "cycles": ["CYCLES"]}[engine]
-    for i, name in enumerate(engines):
-        scene.render.engine = name
-        start = time.perf_counter()
-        try:
-            bpy.ops.render.render(write_still=True)
-        except RuntimeError as e:
-            if i + 1 == len(engines):
-                raise
-            print(f"blender_scene.py: {name} does not run here ({str(e).strip().splitlines()[-1]}); trying {engines[i + 1]}")
-            continue
-        print(f"blender_scene.py: rendered {out} ({size[0]}x{size[1]}) with {name} in {time.perf_counter() - start:.2f} s")
-        return name
-    return None
+    if engine == "auto":
+        engine = "eevee" if eevee_runs() else "cycles"
+        print(f"blender_scene.py: {'EEVEE draws here' if engine == 'eevee' else 'EEVEE does not draw here: Cycles on the CPU'}")
+    scene.render.engine = {"eevee": "BLENDER_EEVEE_NEXT", "cycles": "CYCLES"}[engine]
+    start = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    print(f"blender_scene.py: rendered {out} ({size[0]}x{size[1]}) with {scene.render.engine} in {time.perf_counter() - start:.2f} s")
+    return scene.render.engine
 
 
 def main(argv=None):
     global CONFIG
     CONFIG = json.loads(CONFIG) if isinstance(CONFIG, str) else CONFIG
     args = arguments(script_arguments() if argv is None else argv)
-    size = (CONFIG["width"], CONFIG["height"])
-    if args.size:
-        w, _, h = args.size.lower().partition("x")
-        size = (int(w), int(h))
+    if args.probe_eevee:
+        probe_eevee()
+        return 0
+    size = args.size or (CONFIG["width"], CONFIG["height"])
     build(args.shading or CONFIG["shading"])
     render_settings(size)
     if args.save:

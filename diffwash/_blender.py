@@ -245,7 +245,11 @@ _THICKNESS_INPUTS = {"normal": 3, "view": 3, "light_direction": 3, **{k: 1 for k
 
 
 def _thickness_at_point(normal: Expr, view: Expr, light: Expr, *constants: Expr) -> tuple[Expr, Expr]:
-    """The shaders' per-point shading: normalise N, L and V, then `shading.thicknesses`."""
+    """The shaders' per-point shading: normalise N, L and V, then `shading.thicknesses`.
+
+    The constants reach the model as the leaves of the shaders' uniform `Params` (symbols of the same names as
+    `constants`, which the lowering maps to the group's inputs by name).
+    """
     p = _uniform_params()
     n, l_, v = (shading.safe_normalize(x) for x in (normal, light, view))
     return shading.thicknesses(n, l_, v, p)
@@ -351,7 +355,7 @@ def _template() -> str:
 def blender_script(scene: Any, lut: Lut, params: Any = None) -> str:
     """`blender_scene.py` for `scene` drawn with `lut`: the script's text (its data is `blender_data.npz`)."""
     blob = json.dumps(blender_config(scene, lut, params), separators=(",", ":"))
-    return _template().replace('CONFIG = "__CONFIG__"', f"CONFIG = {blob!r}").replace("__VERSION__", __version__)
+    return _template().replace('CONFIG = "__CONFIG__"', f"CONFIG = json.loads({blob!r})").replace("__VERSION__", __version__)
 
 
 def bpy_available() -> bool:

@@ -20,7 +20,12 @@
   layer as the GLB's `_MIX` and `_STROKE` attributes, and the viewer draws the look;
 - for the `threejs` target, `diffwash-material.js` (an ES module building a
   `THREE.ShaderMaterial`), `index.html` (draws `mesh.glb` with it) and
-  `three/` (three.js's module files; `diffwash._threejs`).
+  `three/` (three.js's module files; `diffwash._threejs`);
+- for the `blender` target, `blender_scene.py` (builds the scene in Blender: node
+  groups generated from the model, camera, render settings), `blender_data.npz`
+  (mesh and LUT) and, where `bpy` is importable, `scene.blend`
+  (`diffwash._blender`); its shader files are GLSL 3.30. It draws the plain
+  model with the colour LUT: a watercolour look or `kind="rt"` is refused.
 
 The folder appears whole or not at all: everything is written into a temporary
 folder beside it, which is then renamed.
@@ -172,7 +177,8 @@ def export(
     - `target`: `"webgl2"` (GLSL ES 3.00) or `"glsl330"` (OpenGL 3.3 core) for
       the shader files (the viewer always uses WebGL2 shaders from the same
       template); `"threejs"` also writes the three.js module, page and
-      library (`diffwash._threejs`), which draw the look too.
+      library (`diffwash._threejs`), which draw the look too; `"blender"` writes
+      GLSL 3.30 files and a Blender scene (`diffwash._blender`, docs/blender.md).
     - `size`: LUT samples per axis (2..4096), or `(N, M)`.
     - `fmt`: LUT file format: `"png16"`, `"png8"`, `"exr"` or `"npy"`.
     - `kind`: `"colour"` or `"rt"` (R and T, composited over a `paper` uniform).

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-CONFIG = "__CONFIG__"
+CONFIG = "__CONFIG__"  # the export puts the scene's values here: json.loads of its JSON
 HERE = Path(__file__).resolve().parent
 SHADING_MODES = ("per-pixel", "per-vertex")
 _SOCKET = {1: "NodeSocketFloat", 3: "NodeSocketVector"}
@@ -512,8 +512,8 @@ def render(out, engine, size):
 
 
 def main(argv=None):
-    global CONFIG
-    CONFIG = json.loads(CONFIG) if isinstance(CONFIG, str) else CONFIG
+    if not isinstance(CONFIG, dict):
+        raise SystemExit("blender_scene.py: this is diffwash's template; diffwash export --target blender writes the script")
     args = arguments(script_arguments() if argv is None else argv)
     if args.probe_eevee:
         probe_eevee()

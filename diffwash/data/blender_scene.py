@@ -419,12 +419,42 @@ def build_world():
     bpy.context.scene.world = world
 
 
+def build_light():
+    """`diffwash light`: a Sun lamp whose +z (it shines down its -z) is the scene's direction towards the light.
+
+    It lights nothing (the materials are emission); drivers read its direction into the node groups'
+    `Light Direction`, so rotating it moves the model's light.
+    """
+    import bpy
+    from mathutils import Vector
+
+    sun = bpy.data.objects.new("diffwash light", bpy.data.lights.new("diffwash light", "SUN"))
+    sun.rotation_mode = "QUATERNION"
+    sun.rotation_quaternion = Vector(CONFIG["light_direction"]).normalized().to_track_quat("Z", "Y")
+    sun.location = Vector(CONFIG["camera"]["matrix_world"][i][3] for i in range(3)) * 0.5
+    bpy.context.scene.collection.objects.link(sun)
+    bpy.context.view_layer.update()  # its matrix_world, which the drivers read
+    return sun
+
+
+def drive_light(socket, sun):
+    """Drive a `Light Direction` socket from the sun's world +z (simple expressions: no Python at render time)."""
+    for i, curve in enumerate(socket.driver_add("default_value")):
+        driver = curve.driver
+        driver.type = "SCRIPTED"
+        variable = driver.variables.new()
+        variable.name, variable.type = "z", "SINGLE_PROP"
+        variable.targets[0].id_type, variable.targets[0].id = "OBJECT", sun
+        variable.targets[0].data_path = f"matrix_world[2][{i}]"  # RNA indexes the matrix column first: the z axis
+        driver.expression = "z"
+
+
 def build(shading):
     """The whole scene, in a fresh file."""
     import bpy
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    obj, camera = build_mesh(), build_camera()
+    obj, camera, sun = build_mesh(), build_camera(), build_light()
     build_world()
     lut = lut_group(lut_image())
     watercolour = watercolour_group(thickness_group("ShaderNodeTree", "diffwash thickness"), lut)
@@ -432,6 +462,10 @@ def build(shading):
     obj.data.materials.append(materials[shading])
     modifier = per_vertex_modifier(obj, camera)
     modifier.show_viewport = modifier.show_render = shading == "per-vertex"
+    for tree in (materials["per-pixel"].node_tree, modifier.node_group):
+        for node in tree.nodes:
+            if node.type == "GROUP" and "Light Direction" in node.inputs:
+                drive_light(node.inputs["Light Direction"], sun)
     return obj
 
 

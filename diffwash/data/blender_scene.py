@@ -22,7 +22,7 @@ Only the scene's data is specific to it (CONFIG below); the rest is the same for
 """
 
 import argparse
-import json
+import json  # the export embeds the scene as CONFIG = json.loads(...)
 import os
 import subprocess
 import sys

@@ -145,11 +145,10 @@ def _is_export(folder: Path) -> bool:
 
 def _check_blender(scene: Scene, kind: str) -> None:
     """Refuse what the Blender target cannot draw: the watercolour look's passes, the R/T LUT."""
-    where = scene.path if scene.path is not None else None
     if scene.watercolour is not None:
         raise DiffwashError("the Blender target draws the plain model; the watercolour look's passes (an edge blur over "
                             "the whole image, a G-buffer) are beyond shader nodes: export it for webgl2, glsl330 or "
-                            "threejs, or remove the \"watercolour\" object", file=where, field="watercolour")  # fmt: skip
+                            "threejs, or remove the \"watercolour\" object", file=scene.path, field="watercolour")  # fmt: skip
     if kind != "colour":
         raise DiffwashError("the Blender target reads the colour LUT; R and T over a paper uniform (--rt) are for "
                             "the GLSL targets", field="rt")  # fmt: skip

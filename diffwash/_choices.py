@@ -8,7 +8,7 @@ numerical stack.
 
 from __future__ import annotations
 
-__all__ = ["SHADING_MODES", "EXPORT_TARGETS"]
+__all__ = ["SHADING_MODES", "EXPORT_TARGETS", "LUT_FORMATS", "SOLVERS", "IMAGE_LOSSES"]
 
 #: Where the wash and unlit thicknesses are computed: at every pixel, or at the vertices and interpolated.
 SHADING_MODES = ("per-pixel", "per-vertex")
@@ -16,3 +16,17 @@ SHADING_MODES = ("per-pixel", "per-vertex")
 #: What `diffwash export --target` writes for: the shader language of the .vert/.frag files (GLSL 3.30, WebGL2),
 #: a three.js module and page, or a Blender scene (a script, its data, a .blend where `bpy` is installed).
 EXPORT_TARGETS = ("webgl2", "glsl330", "threejs", "blender")
+
+#: LUT file formats (`diffwash.lut.FORMATS`): name -> (file extension, encoding of the stored values).
+LUT_FORMATS: dict[str, tuple[str, str]] = {
+    "png16": (".png", "srgb"),
+    "png8": (".png", "srgb"),
+    "exr": (".exr", "linear"),
+    "npy": (".npy", "linear"),
+}
+
+#: Image-fit solvers by name (`diffwash.fit.SOLVERS`): least-squares solvers work on the residuals,
+#: minimisers on half their sum of squares.
+SOLVERS = ("lm", "gauss-newton", "dogleg", "bfgs")
+#: Where an image fit compares (`diffwash.fit.IMAGE_LOSSES`): linear RGB or CIELAB.
+IMAGE_LOSSES = ("linear", "lab")

@@ -62,6 +62,7 @@ import png
 from jaxtyping import Array, ArrayLike, Float
 
 from . import shading
+from ._choices import LUT_FORMATS
 from ._errors import DiffwashError
 from ._io import atomic_path, check_input_file, open_input, read_json
 from ._lazy import lazy
@@ -93,13 +94,9 @@ __all__ = [
 
 #: Smallest and largest number of samples per axis.
 MIN_SIZE, MAX_SIZE = 2, 4096
-#: File formats: name -> (file extension, encoding of the stored values).
-FORMATS: dict[str, tuple[str, str]] = {
-    "png16": (".png", "srgb"),
-    "png8": (".png", "srgb"),
-    "exr": (".exr", "linear"),
-    "npy": (".npy", "linear"),
-}
+#: File formats: name -> (file extension, encoding of the stored values); declared in `_choices` so
+#: that `--help` can list them without loading JAX.
+FORMATS = LUT_FORMATS
 #: Kinds of table: the final colour over the paper, or the glazes' R and T.
 KINDS = ("colour", "rt")
 #: Identifies a sidecar file; bumped when its schema changes incompatibly.

@@ -44,7 +44,7 @@ def add_arguments(p) -> None:
     p.add_argument("--size", default="256", metavar="N", help="samples per axis, 2..4096, or NxM (wash x unlit) (default: %(default)s)")
     p.add_argument(
         "--format",
-        choices=list(diffwash.lut.FORMATS),
+        choices=list(diffwash.LUT_FORMATS),
         default=None,
         help="png16 (16-bit sRGB, the default for .png), png8 (8-bit sRGB), exr (linear float), npy (linear float)",
     )

@@ -26,7 +26,7 @@ def add_arguments(p) -> None:
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (must not exist or be empty)")
     p.add_argument("--target", choices=list(diffwash.EXPORT_TARGETS), default="webgl2", help="shader language of the .vert/.frag files; threejs adds a three.js module and page, blender a script that builds the scene in Blender and a .blend (default: %(default)s)")
     p.add_argument("--size", default="256", metavar="N", help="LUT samples per axis, 2..4096, or NxM (default: %(default)s)")
-    p.add_argument("--format", choices=list(diffwash.lut.FORMATS), default="png16", help="LUT file format (default: %(default)s)")
+    p.add_argument("--format", choices=list(diffwash.LUT_FORMATS), default="png16", help="LUT file format (default: %(default)s)")
     p.add_argument("--rt", action="store_true", help="export the R/T LUT and shaders that composite over a paper uniform")
     p.add_argument("--overwrite", action="store_true", help="replace a previous export in DIR")
 

@@ -78,6 +78,7 @@ import numpy as np
 import optimistix as optx
 
 from .. import colorimetry
+from .._choices import IMAGE_LOSSES, SOLVERS
 from .._errors import DiffwashError
 from .._io import read_image, read_json
 from .._mixture import check_fittable
@@ -115,9 +116,6 @@ FITTABLE: dict[str, tuple[str, int]] = {
     # The watercolour look's continuous parameters (a scene's "watercolour" object, that effect on).
     **{n: ("logit" if n in LOOK_FRACTIONS else "log", 1) for n in LOOK_PARAMETERS},
 }
-#: Solvers by name: least-squares solvers work on the residuals, minimisers on half their sum of squares.
-SOLVERS = ("lm", "gauss-newton", "dogleg", "bfgs")
-IMAGE_LOSSES = ("linear", "lab")
 #: Starting proportions of a fitted mixture are raised to this (then renormalised): a log-ratio at 0 is infinite.
 MIN_PROPORTION = 1e-3
 

@@ -43,6 +43,7 @@ COMMANDS = {
     "fit-swatch": "fit pigment K and S to a swatch-card photo or a table of measured colours",
     "fit-image": "fit scene parameters to target images",
     "predict": "predict the colour of single paints and mixtures from a pigment library (fit-swatch --table)",
+    "suggest": "rank candidate swatches by how much measuring them would shrink the 90% regions of predictions",
     "demo": "run the whole product on bundled data",
 }
 

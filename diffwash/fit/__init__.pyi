@@ -35,3 +35,7 @@ from ._mixfit import fit_mixtures as fit_mixtures
 from ._mixfit import pair_folds as pair_folds
 from ._mixfit import score_library as score_library
 from ._posterior import uncertainty_lines as uncertainty_lines
+from ._suggest import Pick as Pick
+from ._suggest import Suggestions as Suggestions
+from ._suggest import suggest as suggest
+from ._suggest import write_suggestions as write_suggestions

@@ -6,7 +6,8 @@ The NTU spectral table's seven paints that were measured mixed in all 21 of thei
 P10, P13), on a 20 nm grid (21 bands, to keep each refit cheap). Per seed the 21 pairs are shuffled:
 
 - **queries**: 6 pairs held out, 4 rows of each (24 rows): never measured, never candidates;
-- **start**: every paint alone at amounts 0.02, 0.05 and 0.1 (21 rows) and 2 rows of each of 3 pairs;
+- **start**: every paint alone at amounts 0.02, 0.05 and 0.1 (21 rows; `--single-amounts` to change) and 2 rows
+  of each of 3 pairs;
 - **candidates**: 4 rows of each of the other 12 pairs and the start pairs' other 2 rows each (54 rows), their
   measured values hidden until a strategy measures them.
 
@@ -53,14 +54,14 @@ def load() -> measurements.Measurements:
                    grounds={k: v[bi] for k, v in m.grounds.items()})  # fmt: skip
 
 
-def split(m: measurements.Measurements, seed: int) -> dict[str, np.ndarray]:
+def split(m: measurements.Measurements, seed: int, single_amounts=SINGLE_AMOUNTS) -> dict[str, np.ndarray]:
     """Row indices of the start table, the candidates and the queries (module docstring)."""
     rng = np.random.default_rng(seed)
     key = [tuple(sorted(set(p))) for p in m.pigments]
     amt = np.array([sum(a) for a in m.amounts])
     start = []
     for p in sorted(PAINTS):
-        for a in SINGLE_AMOUNTS:
+        for a in single_amounts:
             start.append(next(i for i, k in enumerate(key) if k == (p,) and abs(amt[i] - a) < 1e-9))
     ps = pairs(m)
     order = [ps[i] for i in rng.permutation(len(ps))]
@@ -116,13 +117,15 @@ def run_strategy(m, parts, strategy: str, seed: int, rounds: int, per_round: int
 
 
 def table(results: list[dict], rounds: int) -> str:
-    lines = ["| round | rows | strategy | held-out mean dE2000 | mean de2000_90 | held by the regions | seeds where suggest < random (dE2000, de2000_90) |",
-             "| --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    """Per round and strategy, the means over seeds; for suggest, also what it expected the round before."""
+    lines = ["| round | rows | strategy | held-out mean dE2000 | mean de2000_90 (suggest expected) | held by the regions | "
+             "seeds where suggest < random: dE2000, de2000_90 |", "| --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
     for r in range(rounds + 1):
-        by = {s: [x for x in results if x["strategy"] == s and x["round"] == r] for s in ("suggest", "random")}
+        by = {s: sorted((x for x in results if x["strategy"] == s and x["round"] == r), key=lambda x: x["seed"])
+              for s in ("suggest", "random")}  # fmt: skip
         wins = ""
-        if len(by["suggest"]) == len(by["random"]):
-            a, b = (sorted(by[s], key=lambda x: x["seed"]) for s in ("suggest", "random"))
+        if by["suggest"] and len(by["suggest"]) == len(by["random"]):
+            a, b = by["suggest"], by["random"]
             w1 = sum(x["mean_de2000"] < y["mean_de2000"] for x, y in zip(a, b))
             w2 = sum(x["mean_de2000_90"] < y["mean_de2000_90"] for x, y in zip(a, b))
             wins = f"{w1}/{len(a)}, {w2}/{len(a)}"
@@ -130,8 +133,10 @@ def table(results: list[dict], rounds: int) -> str:
             if not xs:
                 continue
             mean = {k: np.mean([x[k] for x in xs]) for k in ("mean_de2000", "mean_de2000_90", "held", "rows")}
-            lines.append(f"| {r} | {mean['rows']:.0f} | {s} | {mean['mean_de2000']:.3f} | {mean['mean_de2000_90']:.3f} | "
-                         f"{100 * mean['held']:.1f}% | {wins if s == 'suggest' else ''} |")  # fmt: skip
+            before = [x for x in results if x["strategy"] == s and x["round"] == r - 1 and "expected_mean_de2000_90" in x]
+            expect = f" ({np.mean([x['expected_mean_de2000_90'] for x in before]):.2f})" if before else ""
+            lines.append(f"| {r} | {mean['rows']:.0f} | {s} | {mean['mean_de2000']:.2f} | {mean['mean_de2000_90']:.2f}{expect} | "
+                         f"{100 * mean['held']:.0f}% | {wins if s == 'suggest' else ''} |")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -140,19 +145,26 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--rounds", type=int, default=4)
     ap.add_argument("--per-round", type=int, default=2)
+    ap.add_argument("--single-amounts", type=float, nargs="+", default=list(SINGLE_AMOUNTS),
+                    help="the amounts each paint is measured alone at in the start table")  # fmt: skip
     ap.add_argument("--json", default=None, help="write every round's numbers here")
+    ap.add_argument("--table-from", default=None, metavar="JSON", help="print the tables of an earlier --json, run nothing")
     args = ap.parse_args()
+    if args.table_from:
+        results = json.loads(Path(args.table_from).read_text())
+        print(table(results, max(x["round"] for x in results)))
+        return
     diffwash.enable_compilation_cache()
     t0 = time.perf_counter()
     m = load()
     results = []
     for seed in args.seeds:
-        parts = split(m, seed)
+        parts = split(m, seed, args.single_amounts)
         for strategy in ("suggest", "random"):
             results += run_strategy(m, parts, strategy, seed, args.rounds, args.per_round)
             if args.json:  # as it goes: a long run that stops keeps what it measured
                 Path(args.json).write_text(json.dumps(results, indent=1))
-    print(f"NTU WPSM, 7 paints, 21 bands; seeds {args.seeds}; {args.per_round} rows measured per round; "
+    print(f"NTU WPSM, 7 paints, 21 bands; seeds {args.seeds}; alone at {args.single_amounts}; {args.per_round} rows measured per round; "
           f"{len(parts['queries'])} query rows of {QUERY_PAIRS} pairs never measured; {len(parts['candidates'])} candidates\n")
     print(table(results, args.rounds))
     print(f"\nwall {time.perf_counter() - t0:.0f} s; mean refit {np.mean([x['fit_s'] for x in results]):.1f} s")

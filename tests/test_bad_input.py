@@ -102,15 +102,35 @@ def png_bomb(path, side=30000):
     return path
 
 
-def peak_rss_of(args, cwd):
-    """Run `python -m diffwash ARGS` and return (status, stderr, its own peak resident memory in MB)."""
+#: Runs `python -m diffwash ARGS` (argv[2:]) and, at its exit, writes its own peak resident memory in kB to argv[1]:
+#: the kernel's high-water mark of this process's memory since its exec (VmHWM), not `ru_maxrss`. A child's
+#: `ru_maxrss` (`wait4`, `getrusage`) also holds the high-water mark of the process it was spawned from (Linux keeps
+#: the old memory's peak across exec, and `subprocess` spawns by vfork, with the parent's memory), so beside heavy
+#: tests, in a pytest worker that once peaked at 900 MB, a 290 MB command read 900 MB.
+_MEASURED = """
+import atexit, resource, runpy, sys
+def report(path=sys.argv[1]):
+    try:
+        with open("/proc/self/status") as f:
+            kb = next(int(line.split()[1]) for line in f if line.startswith("VmHWM:"))
+    except (OSError, StopIteration):  # no /proc (macOS): the usage figure, an upper bound
+        kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // (1024 if sys.platform == "darwin" else 1)
+    with open(path, "w") as f:
+        f.write(str(kb))
+atexit.register(report)
+sys.argv = ["diffwash", *sys.argv[2:]]
+runpy.run_module("diffwash", run_name="__main__", alter_sys=True)
+"""
+
+
+def peak_rss_of(args, cwd, timeout=120):
+    """Run `python -m diffwash ARGS` in `cwd`: (status, stderr, its own peak resident memory in MB)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "DIFFWASH_CACHE_DIR": "off"}
-    with open(cwd / "stderr.txt", "wb") as err:
-        p = subprocess.Popen([sys.executable, "-m", "diffwash", *map(str, args)], cwd=cwd, env=env,
-                             stdout=subprocess.DEVNULL, stderr=err)  # fmt: skip
-        _, status, usage = os.wait4(p.pid, 0)
-        p.returncode = os.waitstatus_to_exitcode(status)
-    return p.returncode, (cwd / "stderr.txt").read_text(), usage.ru_maxrss / 1024
+    report = cwd / "peak_rss.txt"
+    report.unlink(missing_ok=True)
+    p = subprocess.run([sys.executable, "-c", _MEASURED, report, *map(str, args)], cwd=cwd, env=env,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=timeout, text=True)  # fmt: skip
+    return p.returncode, p.stderr, int(report.read_text()) / 1024
 
 
 def test_decompression_bomb_is_refused_from_its_header_with_little_memory(tmp_path):

@@ -428,9 +428,21 @@ def write_png(path: str | os.PathLike, img: np.ndarray, bits: int = 8) -> None:
     if a.dtype.kind == "f":
         a = to_uint(a, bits)
     h, w, c = a.shape
-    writer = png.Writer(w, h, greyscale=c <= 2, alpha=c in (2, 4), bitdepth=bits)
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        writer.write(f, a.reshape(h, w * c).astype(np.uint16 if bits > 8 else np.uint8))
+        write_png_blocks(f, w, h, [a], bits=bits, greyscale=c <= 2, alpha=c in (2, 4))
+
+
+def write_png_blocks(f: Any, width: int, height: int, blocks: Any, *, bits: int, greyscale: bool = False,
+                     alpha: bool = False) -> None:  # fmt: skip
+    """Write a PNG of `width` x `height` pixels to the open file `f` from `blocks` of its rows, top first: integer
+    arrays `(rows, width, channels)`, each packed into bytes by NumPy as it comes (pypng packs 16-bit samples one by
+    one in Python), so an image made block by block is never held whole."""
+    writer = png.Writer(width, height, greyscale=greyscale, alpha=alpha, bitdepth=bits)
+    dtype = ">u2" if bits > 8 else "u1"
+    rows = (row.tobytes() for b in blocks for row in np.asarray(b).astype(dtype).reshape(len(b), -1))
+    written = writer.write_packed(f, rows)
+    if written != height:
+        raise ValueError(f"a PNG of {height} rows was given {written}")
 
 
 def write_image(path: str | os.PathLike, img: np.ndarray, bits: int = 8, *, quality: int = 95) -> None:

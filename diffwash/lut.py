@@ -64,7 +64,7 @@ from jaxtyping import Array, ArrayLike, Float
 from . import shading
 from ._choices import LUT_FORMATS
 from ._errors import DiffwashError
-from ._io import atomic_path, check_input_file, open_input, read_json
+from ._io import atomic_path, check_input_file, open_input, read_json, write_png_blocks
 from ._lazy import lazy
 from ._mixture import Mixture
 from ._scene import Scene, load_scene
@@ -370,14 +370,28 @@ def sidecar(lut: Lut, fmt: str, files: dict[str, str]) -> dict:
     return data
 
 
+#: Samples (texels x channels) encoded at once by `encoded`: the sRGB encoding works in float64 with a few temporaries, so a
+#: 4096^2 table is encoded in blocks of rows (a few MB) rather than whole (several GB).
+_ENCODE_BLOCK = 1 << 18
+
+
 def encoded(lut: Lut, fmt: str) -> np.ndarray:
     """The values as `fmt` stores them: sRGB-encoded and quantised for PNGs, linear float32 otherwise."""
-    v = np.asarray(lut.values, np.float64)
-    if fmt == "png16":
-        return np.round(to_display(v) * 65535).astype(np.uint16)
-    if fmt == "png8":
-        return np.round(to_display(v) * 255).astype(np.uint8)
-    return v.astype(np.float32)
+    values = np.asarray(lut.values)
+    if fmt not in ("png16", "png8"):
+        return np.asarray(values, np.float32)
+    out = np.empty(values.shape, np.uint16 if fmt == "png16" else np.uint8)
+    for start, block in _encoded_blocks(values, fmt):
+        out[start : start + len(block)] = block
+    return out
+
+
+def _encoded_blocks(values: np.ndarray, fmt: str) -> Any:
+    """`(first row, block)` of `values` (rows first) sRGB-encoded and quantised for a `fmt` PNG, block by block."""
+    top, dtype = (65535, np.uint16) if fmt == "png16" else (255, np.uint8)
+    rows = max(1, _ENCODE_BLOCK // max(1, int(np.prod(values.shape[1:]))))
+    for start in range(0, values.shape[0], rows):
+        yield start, np.round(to_display(values[start : start + rows]) * top).astype(dtype)
 
 
 def save(path: str | os.PathLike, lut: Lut, fmt: str | None = None) -> list[Path]:
@@ -394,7 +408,7 @@ def save(path: str | os.PathLike, lut: Lut, fmt: str | None = None) -> list[Path
     path = Path(path)
     fmt = format_for(path, fmt)
     side = sidecar_path(path)
-    data = encoded(lut, fmt)
+    data = None if fmt.startswith("png") else encoded(lut, fmt)  # a PNG is encoded row block by row block
     targets = _image_paths(path, lut.kind) if fmt.startswith("png") else {lut.kind: path}
     header = sidecar(lut, fmt, {k: p.name for k, p in targets.items()})
     text = json.dumps(header, indent=2, allow_nan=False) + "\n"
@@ -403,11 +417,12 @@ def save(path: str | os.PathLike, lut: Lut, fmt: str | None = None) -> list[Path
         side_tmp = stack.enter_context(atomic_path(side))
         if fmt.startswith("png"):
             bits = 16 if fmt == "png16" else 8
-            for i, (k, tmp) in enumerate(temps.items()):
-                block = data[..., 3 * i : 3 * i + 3]
-                m, n, _ = block.shape
+            values = np.asarray(lut.values)
+            m, n = values.shape[:2]
+            for i, tmp in enumerate(temps.values()):
+                blocks = (block for _, block in _encoded_blocks(values[..., 3 * i : 3 * i + 3], fmt))
                 with open(tmp, "wb") as f:
-                    png.Writer(n, m, greyscale=False, bitdepth=bits).write(f, block.reshape(m, n * 3))
+                    write_png_blocks(f, n, m, blocks, bits=bits)
         elif fmt == "exr":
             _write_exr(temps[lut.kind], data, header)
         else:

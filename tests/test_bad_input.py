@@ -597,3 +597,25 @@ def test_the_looks_keys_are_refused_before_rendering(cli, tmp_path, look, needle
     before = snapshot(tmp_path)
     refused(cli("render", "scene.json", "-o", "x.png"), "scene.json", *needles)
     assert snapshot(tmp_path) == before
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Memory: large accepted inputs are worked through in blocks, never as whole float64 copies.
+
+
+def test_a_large_lut_is_encoded_and_written_in_blocks(tmp_path):
+    import tracemalloc
+
+    values = np.random.default_rng(0).random((512, 4096, 3), dtype=np.float32)  # 25 MB
+    table = diffwash.lut.Lut(values=values, wash_max=1.0, unlit_max=1.0)
+    diffwash.lut.encoded(diffwash.lut.Lut(values=values[:2, :2], wash_max=1.0, unlit_max=1.0), "png16")  # imports
+    tracemalloc.start()
+    try:
+        diffwash.lut.save(tmp_path / "lut.png", table)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    # Encoded whole, the sRGB encoding alone held a float64 copy (50 MB) and several temporaries (680 MB in all).
+    assert peak < values.nbytes, f"saving a {values.nbytes / 2**20:.0f} MB table took {peak / 2**20:.0f} MB"
+    back = diffwash.lut.load(tmp_path / "lut.png")
+    assert np.array_equal(diffwash.lut.encoded(back, "png16"), diffwash.lut.encoded(table, "png16"))

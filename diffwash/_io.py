@@ -425,11 +425,11 @@ def write_png(path: str | os.PathLike, img: np.ndarray, bits: int = 8) -> None:
     """
 
     a = _channels(img)
-    if a.dtype.kind == "f":
-        a = to_uint(a, bits)
     h, w, c = a.shape
+    step = max(1, (1 << 18) // max(1, w * c))  # rows quantised at once: a float image is not copied whole
+    blocks = (to_uint(a[y : y + step], bits) if a.dtype.kind == "f" else a[y : y + step] for y in range(0, h, step))
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        write_png_blocks(f, w, h, [a], bits=bits, greyscale=c <= 2, alpha=c in (2, 4))
+        write_png_blocks(f, w, h, blocks, bits=bits, greyscale=c <= 2, alpha=c in (2, 4))
 
 
 def write_png_blocks(f: Any, width: int, height: int, blocks: Any, *, bits: int, greyscale: bool = False,

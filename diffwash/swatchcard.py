@@ -252,21 +252,55 @@ def make_swatch_card(
 
 
 def _photograph(card: np.ndarray, effects: CameraEffects, rng: np.random.Generator) -> np.ndarray:
-    """The photo (display sRGB in [0, 1]) a camera takes of a card of linear reflectance `card`, (H, W, 3)."""
+    """The photo (display sRGB in [0, 1]) a camera takes of a card of linear reflectance `card`, (H, W, 3).
+
+    Made in bands of rows (each with the rows the blur reaches beyond it), so that a card of hundreds of patches
+    takes tens of MB beside its photo, not ten copies of it; the noise is drawn row after row, as one draw of the
+    whole photo would (the same photo, band by band or whole)."""
     H, W, _ = card.shape
-    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+    reach = int(4.0 * effects.blur + 0.5) if effects.blur > 0 else 0  # ndimage.gaussian_filter's radius
+    rows = max(4 * reach + 1, (1 << 18) // W)
+    noisy = effects.shot_noise > 0 or effects.read_noise > 0
+    noise = _RowNoise(rng, W)
+    out = np.empty((H, W, 3), np.float64)
+    for y0 in range(0, H, rows):
+        y1 = min(y0 + rows, H)
+        a, b = max(y0 - reach, 0), min(y1 + reach, H)
+        signal = card[a:b] * _light(a, b, H, W, effects)[..., None] * effects.exposure
+        signal *= np.asarray(effects.white_balance)
+        if noisy:
+            sd = np.sqrt(effects.shot_noise**2 * np.maximum(signal, 0) + effects.read_noise**2)
+            signal = signal + sd * noise.rows(a, b)
+        if effects.blur > 0:
+            signal = ndimage.gaussian_filter(signal, (effects.blur, effects.blur, 0), mode="nearest")
+        signal = signal[y0 - a : y1 - a]
+        out[y0:y1] = np.clip(np.asarray(colorimetry.srgb_encode(np.clip(signal, 0, 1)), np.float64), 0, 1)
+    return out
+
+
+def _light(a: int, b: int, H: int, W: int, effects: CameraEffects) -> np.ndarray:
+    """The relative light on rows `a:b` of an `H` x `W` card: cos^4 falloff, the field angle chosen so that the
+    corners lose `vignetting`, and a linear gradient from left to right."""
+    yy, xx = np.mgrid[a:b, 0:W].astype(np.float64)
     cx, cy = (W - 1) / 2, (H - 1) / 2
     r2 = ((xx - cx) ** 2 + (yy - cy) ** 2) / (cx**2 + cy**2)
-    # cos^4 falloff with the field angle chosen so that the corners lose `vignetting`.
     tan2 = r2 * ((1 - effects.vignetting) ** -0.5 - 1)
-    light = 1 / (1 + tan2) ** 2 * (1 + effects.gradient * (xx / max(W - 1, 1) - 0.5))
-    signal = card * light[..., None] * effects.exposure * np.asarray(effects.white_balance)
-    if effects.shot_noise > 0 or effects.read_noise > 0:
-        sd = np.sqrt(effects.shot_noise**2 * np.maximum(signal, 0) + effects.read_noise**2)
-        signal = signal + sd * rng.standard_normal(signal.shape)
-    if effects.blur > 0:
-        signal = ndimage.gaussian_filter(signal, (effects.blur, effects.blur, 0), mode="nearest")
-    return np.clip(np.asarray(colorimetry.srgb_encode(np.clip(signal, 0, 1)), np.float64), 0, 1)
+    return 1 / (1 + tan2) ** 2 * (1 + effects.gradient * (xx / max(W - 1, 1) - 0.5))
+
+
+class _RowNoise:
+    """Standard normal noise for rows of a `W`-pixel-wide RGB image, drawn in row order and kept while needed."""
+
+    def __init__(self, rng: np.random.Generator, W: int):
+        self.rng, self.W, self.first, self.kept = rng, W, 0, np.empty((0, W, 3))
+
+    def rows(self, a: int, b: int) -> np.ndarray:
+        """Rows `a:b`; `a` never goes back before an earlier call's."""
+        drawn = self.first + len(self.kept)
+        if b > drawn:
+            self.kept = np.concatenate([self.kept, self.rng.standard_normal((b - drawn, self.W, 3))])
+        self.kept, self.first = self.kept[a - self.first :], a
+        return self.kept[: b - a]
 
 
 def _mixture_patch(spec: Any, i: int) -> tuple[tuple[str, ...], tuple[float, ...], tuple[int, ...]]:
@@ -301,14 +335,20 @@ def _smooth_spectrum(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.nd
     return np.maximum(bumps @ np.linalg.solve(M, np.asarray(linear_rgb, np.float64)), 1e-4)
 
 
-@eqx.filter_jit
-def _paint(palette: mixing.Palette, A: Any, column: Any, thickness: Any, ground: Any, cell_amounts: Any, under: Any,
-           k2: float, obs: spectral.Observation) -> tuple[Any, Any]:  # fmt: skip
-    """A mixture card's linear sRGB, (H, W, 3), and its patches' even colours, (N, 3), in one compiled program.
+#: Pixels of a mixture card painted at once (`_paint_card`): a card of hundreds of patches is millions of pixels
+#: of tens of bands, gigabytes painted whole; in blocks of this many, one compiled program paints any card in
+#: tens of MB.
+_PAINT_BLOCK = 1 << 16
 
-    Each pixel's paint is its column's (`column`, an index into the rows of amounts `A`, (N, L, P) layer by
-    layer, bottom first; row 0 holds nothing) with every layer's optical depths scaled by `thickness`, over
-    its ground spectrum (`mixing.stack_reflectance`: Saunderson's term at the top only).
+
+@eqx.filter_jit
+def _paint(palette: mixing.Palette, A: Any, column: Any, thickness: Any, ground: Any, k2: float,
+           obs: spectral.Observation) -> Any:  # fmt: skip
+    """The linear sRGB of a block of a mixture card's pixels, (n, 3), in one compiled program.
+
+    Each pixel's paint is its column's (`column`, (n,), an index into the rows of amounts `A`, (N, L, P) layer by
+    layer, bottom first; row 0 holds nothing) with every layer's optical depths scaled by `thickness`, (n,), over
+    its ground spectrum `ground`, (n, B) (`mixing.stack_reflectance`: Saunderson's term at the top only).
     """
     t = thickness[..., None]
     g = mixing.saunderson_in(ground, k2)
@@ -321,8 +361,30 @@ def _paint(palette: mixing.Palette, A: Any, column: Any, thickness: Any, ground:
         for i in range(A.shape[1]):
             R, T = km.layer(Kx[column, i] * t, Sx[column, i] * t, 1.0)
             g = km.over(R, T, g)
-    card = mixing.saunderson_out(g, k2)
-    return obs.linear_srgb(card), obs.linear_srgb(palette.stack_reflectance(cell_amounts, under, k2))
+    return obs.linear_srgb(mixing.saunderson_out(g, k2))
+
+
+@eqx.filter_jit
+def _even_colours(palette: mixing.Palette, cell_amounts: Any, under: Any, k2: float, obs: spectral.Observation) -> Any:
+    """The linear sRGB of the patches painted evenly, (N, 3)."""
+    return obs.linear_srgb(palette.stack_reflectance(cell_amounts, under, k2))
+
+
+def _paint_card(palette: mixing.Palette, A: Any, column: np.ndarray, thickness: np.ndarray, grounds: np.ndarray,
+                which: np.ndarray, grain: np.ndarray, k2: float, obs: spectral.Observation) -> np.ndarray:  # fmt: skip
+    """A mixture card's linear sRGB, (H, W, 3) float64, painted `_PAINT_BLOCK` pixels at a time (`_paint`).
+
+    A pixel's ground spectrum is `grounds[which]` (paper, ink) times its `grain`, all (H, W)."""
+    H, W = column.shape
+    out = np.empty((H * W, 3), np.float64)
+    column, thickness, which, grain = (a.reshape(-1) for a in (column, thickness, which, grain))
+    for start in range(0, H * W, _PAINT_BLOCK):
+        sl = slice(start, min(start + _PAINT_BLOCK, H * W))
+        n = sl.stop - sl.start
+        pad = lambda a: np.pad(a, (0, _PAINT_BLOCK - n))  # noqa: E731 (one block shape: one compilation)
+        ground = grounds[pad(which[sl])] * pad(grain[sl])[:, None]
+        out[sl] = np.asarray(_paint(palette, A, pad(column[sl]), pad(thickness[sl]), ground, k2, obs))[:n]
+    return out.reshape(H, W, 3)
 
 
 def make_mixture_card(
@@ -385,14 +447,15 @@ def make_mixture_card(
 
     A = library.layer_amounts([n for n, _, _ in specs], [tuple(per_coat * a for a in amts) for _, amts, _ in specs],
                               [k for _, _, k in specs])  # fmt: skip
-    ground = np.broadcast_to(paper_spec, (H, W, len(paper_spec))).copy()
-    if effects.grain > 0:
-        ground *= (1 + effects.grain * _smooth_noise(rng, (H, W), 1.2))[..., None]
+    # The ground's spectrum at each pixel: paper with grain, or the ink of the black band (which: 0 paper, 1 ink).
+    grain = 1 + effects.grain * _smooth_noise(rng, (H, W), 1.2) if effects.grain > 0 else np.ones((H, W))
+    which = np.zeros((H, W), np.intp)
     paper_rgb = paper_spec @ np.asarray(obs.to_rgb, np.float64)
     layout: dict[str, Any] = {"paper": {"box": plan.paper_box, "reflectance": paper_rgb.tolist()}}
     if plan.band is not None:
         y0, y1 = plan.band
-        ground[y0:y1, plan.margin // 6 : W - plan.margin // 6] = ink_spec
+        which[y0:y1, plan.margin // 6 : W - plan.margin // 6] = 1
+        grain[y0:y1, plan.margin // 6 : W - plan.margin // 6] = 1.0  # the ink has no grain
         layout["black"] = {"box": plan.black_box}
     column = np.zeros((H, W), int)  # column 0 is no paint
     thickness = np.zeros((H, W))
@@ -410,10 +473,11 @@ def make_mixture_card(
     if effects.unevenness > 0:
         thickness *= 1 + effects.unevenness * _smooth_noise(rng, (H, W), 4.0)
     under = np.stack([paper_spec if g == "paper" else ink_spec for _, g, _ in plan.cells])
-    card, colours = _paint(library.palette, np.concatenate([np.zeros((1, *A.shape[1:])), A]), column,
-                           np.maximum(thickness, 0), ground, A[[j for j, _, _ in plan.cells]], under,
-                           float(library.k2), obs)  # fmt: skip
-    card, colours = np.asarray(card, np.float64), np.asarray(colours, np.float64)
+    card = _paint_card(library.palette, np.concatenate([np.zeros((1, *A.shape[1:])), A]), column,
+                       np.maximum(thickness, 0), np.stack([paper_spec, ink_spec]), which, grain, float(library.k2),
+                       obs)  # fmt: skip
+    colours = np.asarray(_even_colours(library.palette, A[[j for j, _, _ in plan.cells]], under, float(library.k2),
+                                       obs), np.float64)  # fmt: skip
     return SwatchCard(photo=_photograph(card, effects, rng), layout=layout, pigment=None, paper=paper_rgb,
                       ink=ink_rgb if black else None, effects=effects, patch_colours=colours, library=library,
                       amount_per_coat=per_coat)  # fmt: skip

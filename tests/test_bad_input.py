@@ -619,3 +619,30 @@ def test_a_large_lut_is_encoded_and_written_in_blocks(tmp_path):
     assert peak < values.nbytes, f"saving a {values.nbytes / 2**20:.0f} MB table took {peak / 2**20:.0f} MB"
     back = diffwash.lut.load(tmp_path / "lut.png")
     assert np.array_equal(diffwash.lut.encoded(back, "png16"), diffwash.lut.encoded(table, "png16"))
+
+
+def test_a_mixture_card_of_many_patches_is_painted_in_blocks(tmp_path):
+    # 30 patches over paper and black, 41 bands: painted whole, the card's spectra took 1.4 GB (300 patches, 11 GB).
+    patches = ",".join(["P1:1", "P4:2", "P1+P4:1+1", "P8+P10:2+1", "P10:3"] * 6)
+    status, err, mb = peak_rss_of(["swatch-card", "--library", DATA / "libraries" / "ntu-four.json", "--patches",
+                                   patches, "--ideal", "-o", "card.png"], tmp_path, timeout=300)  # fmt: skip
+    assert status == 0, err
+    assert mb < 1000, f"a 30-patch mixture card peaked at {mb:.0f} MB"
+
+
+def test_a_large_photo_is_linearised_in_blocks():
+    import tracemalloc
+
+    from diffwash.fit._photo import linearise
+
+    display = np.random.default_rng(1).random((1000, 1000, 3))  # 24 MB
+    expected = diffwash.colorimetry.from_display(display[:10])
+    tracemalloc.start()
+    try:
+        linear = linearise(display)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    # Decoded whole, the transfer function's float64 temporaries took 8 times the photo.
+    assert peak < 1.5 * display.nbytes, f"linearising a {display.nbytes / 2**20:.0f} MB photo took {peak / 2**20:.0f} MB"
+    assert np.array_equal(linear[:10], expected)

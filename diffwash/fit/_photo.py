@@ -623,7 +623,10 @@ def _paper_samples(linear: np.ndarray, display: np.ndarray, layout: Layout, pb: 
     bs = max(4, int(np.sqrt(H * W / 40000)))  # at most ~40k blocks
     hb, wb = H // bs, W // bs
     blocks = lambda a: a[: hb * bs, : wb * bs].reshape(hb, bs, wb, bs, -1)  # noqa: E731
-    med = np.median(blocks(linear), axis=(1, 3)).reshape(-1, 3)
+    # Medians a band of blocks at a time: np.median copies what it sorts, a whole photo at once.
+    band = max(1, (1 << 18) // max(1, bs * bs * wb))
+    med = np.concatenate([np.median(blocks(linear)[i : i + band], axis=(1, 3)).reshape(-1, 3)
+                          for i in range(0, hb, band)] or [np.empty((0, 3))]).reshape(-1, 3)  # fmt: skip
     d = blocks(display)
     unclipped = ((d.max(axis=(1, 3)) < hi_level) & (d.min(axis=(1, 3)) > lo_level)).all(axis=-1).ravel()
     inside = blocks(mask[..., None]).all(axis=(1, 3, 4)).ravel()
@@ -751,8 +754,18 @@ def camera_floor(rgb: np.ndarray, accuracy: float) -> np.ndarray:
 
 
 def linearise(display: np.ndarray) -> np.ndarray:
-    """Display sRGB in [0, 1] to linear (the IEC 61966-2-1 transfer function), in numpy."""
-    return colorimetry.from_display(display)
+    """Display sRGB in [0, 1] to linear (the IEC 61966-2-1 transfer function), in numpy.
+
+    A photo is decoded in blocks of rows: the transfer function works through several float64 temporaries of
+    its input's size, which for a photo of hundreds of patches (tens of millions of values) was a gigabyte."""
+    display = np.asarray(display, np.float64)
+    if display.ndim < 2:
+        return colorimetry.from_display(display)
+    out = np.empty(display.shape, np.float64)
+    step = max(1, (1 << 18) // max(1, int(np.prod(display.shape[1:]))))
+    for y in range(0, display.shape[0], step):
+        out[y : y + step] = colorimetry.from_display(display[y : y + step])
+    return out
 
 
 def reference_readings(display: np.ndarray, cal: Calibration, boxes: list[Box]) -> tuple[np.ndarray, np.ndarray]:

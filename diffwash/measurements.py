@@ -38,6 +38,10 @@ Refused too, naming the line: amounts more than `AMOUNT_SPAN` times the
 table's median amount (or less than its reciprocal), numbers float32 cannot
 hold, and pigment names that differ only in case or spacing.
 
+A measurement table is fitted jointly, all its rows at once, in memory and time that grow with its rows: one of
+more than `MAX_TABLE_ROWS` rows is refused, naming the limit, as soon as its reader passes it (before any number is
+parsed); `$DIFFWASH_MAX_TABLE_ROWS` (or `read_measurements(..., max_rows=N)`) raises it.
+
 Every error names the file, the line and the column in one line.
 """
 
@@ -64,6 +68,11 @@ __all__ = [
 
 #: Reflectance above this is taken for a table in percent, not a brightener's glow.
 MAX_REFLECTANCE = 2.0
+#: The most rows of measurements a table may have by default (`$DIFFWASH_MAX_TABLE_ROWS` raises it): the joint fit
+#: holds every row's residuals and derivatives at once; NTU's spectral table (1,859 rows, 41 bands) peaks at 1.6 GB
+#: and takes 2-5 minutes on 2 cores (docs/scaling.md), and a table this long about twice that.
+MAX_TABLE_ROWS = 4000
+ROWS_ENV = "DIFFWASH_MAX_TABLE_ROWS"
 #: An amount more than this many times the table's median amount (or less than its reciprocal) is refused: a typo
 #: (1e30 for 0.03) would dominate the fit's loss; real tables span well under a hundredfold.
 AMOUNT_SPAN = 1e4
@@ -292,17 +301,39 @@ def refuse_colliding_names(names: Any, lines: Any, path: Any) -> None:
                             int(line), "pigment")  # fmt: skip
 
 
-def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+def max_table_rows() -> int:
+    """The most rows a measurement table may have: `$DIFFWASH_MAX_TABLE_ROWS`, else `MAX_TABLE_ROWS`."""
+    env = os.environ.get(ROWS_ENV, "").strip()
+    if not env:
+        return MAX_TABLE_ROWS
+    try:
+        n = float(env)
+    except ValueError:
+        n = math.nan
+    if not (math.isfinite(n) and n >= 1 and n.is_integer()):
+        raise DiffwashError(f"must be a whole number of rows >= 1, got {env!r}", field=ROWS_ENV)
+    return int(n)
+
+
+def _read_csv(path: Path, max_rows: int | None = None) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """The header and the non-blank rows `(line, values)`; more than `max_rows` rows are refused as they come."""
+    body = []
     try:
         with open_input(path, "r", newline="", encoding="utf-8-sig") as f:
             reader = csv.reader(f)
             header = next(reader, None)
-            body = [(reader.line_num, row) for row in reader]
+            for row in reader:
+                if not (row and any(c.strip() for c in row)):
+                    continue
+                if max_rows is not None and len(body) >= max_rows:
+                    raise _fail(f"has more than {max_rows:,} rows of measurements, the most fitted at once (memory and "
+                                f"time grow with the rows: docs/scaling.md); fit a sample of the rows, or raise the "
+                                f"limit with {ROWS_ENV}=N", path, reader.line_num)  # fmt: skip
+                body.append((reader.line_num, row))
     except (OSError, UnicodeDecodeError, csv.Error) as e:
         raise _fail(f"cannot read as CSV: {e}", path) from None
     if header is None:
         raise _fail("is empty (expected a header line starting pigment,amount,ground)", path)
-    body = [(n, row) for n, row in body if row and any(c.strip() for c in row)]
     for n, row in body:
         if len(row) != len(header):
             raise _fail(f"has {len(row)} values, the header {len(header)}", path, n)
@@ -340,7 +371,7 @@ def _band_columns(header: list[str], path: Path) -> tuple[list[int], tuple[float
     return [names.index(c) for c in ("r", "g", "b")], None
 
 
-def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measurements:
+def read_measurements(path: str | os.PathLike, *, linear: bool = False, max_rows: int | None = None) -> Measurements:
     """Read and validate a measurement table (format in the module docstring).
 
     **Arguments:**
@@ -348,6 +379,8 @@ def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measu
     - `path`: the CSV file.
     - `linear`: for an RGB table, the r, g, b columns hold linear reflectance
       rather than display sRGB.
+    - `max_rows`: the most rows accepted (default `max_table_rows()`: `$DIFFWASH_MAX_TABLE_ROWS`, else
+      `MAX_TABLE_ROWS`); a longer table is refused as soon as the reader passes the limit.
 
     **Returns:**
 
@@ -355,7 +388,7 @@ def read_measurements(path: str | os.PathLike, *, linear: bool = False) -> Measu
     `DiffwashError` naming the file, the line and the column.
     """
     path = Path(path)
-    header, body = _read_csv(path)
+    header, body = _read_csv(path, max_table_rows() if max_rows is None else max_rows)
     col = _key_columns(header, path)
     vcols, grid = _band_columns(header, path)
     pigs, amts, gnds, vals, lines, sizes = [], [], [], [], [], []

@@ -646,3 +646,23 @@ def test_a_large_photo_is_linearised_in_blocks():
     # Decoded whole, the transfer function's float64 temporaries took 8 times the photo.
     assert peak < 1.5 * display.nbytes, f"linearising a {display.nbytes / 2**20:.0f} MB photo took {peak / 2**20:.0f} MB"
     assert np.array_equal(linear[:10], expected)
+
+
+def test_a_table_too_long_to_fit_is_refused_naming_the_limit(cli, tmp_path, monkeypatch):
+    from diffwash.measurements import MAX_TABLE_ROWS, read_measurements
+
+    head, *body = (DATA / "ntu-wpsm" / "ntu-spectral-train.csv").read_text().splitlines()
+    rows = [body[i % len(body)] for i in range(MAX_TABLE_ROWS + 500)]
+    (tmp_path / "big.csv").write_text("\n".join([head, *rows]) + "\n")
+    refused(cli("fit-swatch", "--table", "big.csv", "-o", "lib.json"), f"big.csv: line {MAX_TABLE_ROWS + 2}",
+            f"more than {MAX_TABLE_ROWS:,} rows", "DIFFWASH_MAX_TABLE_ROWS=N")  # fmt: skip
+    monkeypatch.setenv("DIFFWASH_MAX_TABLE_ROWS", "lots")
+    refused(cli("fit-swatch", "--table", "big.csv", "-o", "lib.json"), "DIFFWASH_MAX_TABLE_ROWS: must be a whole number")
+    assert not (tmp_path / "lib.json").exists()
+    # The limit is the environment's, or the reader's argument.
+    (tmp_path / "small.csv").write_text("\n".join([head, *body[:20]]) + "\n")
+    monkeypatch.setenv("DIFFWASH_MAX_TABLE_ROWS", "19")
+    refused(cli("fit-swatch", "--table", "small.csv", "-o", "lib.json"), "small.csv: line 21", "more than 19 rows")
+    assert len(read_measurements(tmp_path / "small.csv", max_rows=20).values) == 19  # and the paper's row
+    monkeypatch.setenv("DIFFWASH_MAX_TABLE_ROWS", "20")
+    assert len(read_measurements(tmp_path / "small.csv").values) == 19

@@ -504,12 +504,12 @@ def image_pixel_limit(limit: int | None, field: str = "max_image_pixels") -> Ite
         _PIXEL_LIMIT.reset(token)
 
 
-def _check_pixels(width: int, height: int, path: Path, limit: int) -> None:
+def _check_pixels(width: int, height: int, path: Path, limit: int, advice: str | None = None) -> None:
     if width * height > limit:
+        advice = advice or f"to read it, raise the limit with {PIXELS_ENV}=N or --max-image-pixels N"
         raise DiffwashError(
             f"is {width}x{height} = {width * height:,} pixels by its header, over the limit of {limit:,} (refused "
-            f"before decoding: a small file can hold a huge image); to read it, raise the limit with "
-            f"{PIXELS_ENV}=N or --max-image-pixels N", file=path)  # fmt: skip
+            f"before decoding: a small file can hold a huge image); {advice}", file=path)  # fmt: skip
 
 
 _PILLOW_LOCK = threading.Lock()
@@ -531,7 +531,8 @@ def _pillow_guard() -> Iterator[None]:
 
 
 def read_image(
-    path: str | os.PathLike, *, max_pixels: int | None = None, colour: bool = True, opaque: bool = True
+    path: str | os.PathLike, *, max_pixels: int | None = None, colour: bool = True, opaque: bool = True,
+    advice: str | None = None,
 ) -> tuple[np.ndarray, int]:
     """Read a PNG (8 or 16 bit), JPEG, TIFF, WebP or BMP image, as displayed, for fitting.
 
@@ -542,6 +543,7 @@ def read_image(
 
     - `path`: the image file.
     - `max_pixels`: the most pixels accepted (default `max_image_pixels()`).
+    - `advice`: what the refusal of a larger image says to do (default: how to raise the limit).
     - `colour`: refuse a greyscale image (a greyscale file, or R = G = B at every
       pixel): the fits measure colour, and a grey photo would fit a grey
       pigment. False: greyscale becomes RGB.
@@ -564,7 +566,7 @@ def read_image(
             head = f.read(8)
     except OSError as e:
         raise DiffwashError(f"cannot read: {e.strerror or e}", file=path) from None
-    a, bits, grey = (_read_png if head == _PNG_SIGNATURE else _read_pillow)(path, limit)
+    a, bits, grey = (_read_png if head == _PNG_SIGNATURE else _read_pillow)(path, limit, advice)
     if a.shape[2] in (2, 4):
         alpha = a[..., -1]
         if opaque and not np.all(alpha >= 1.0):
@@ -584,14 +586,14 @@ def read_image(
     return a, bits
 
 
-def _read_png(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
+def _read_png(path: Path, limit: int, advice: str | None = None) -> tuple[np.ndarray, int, bool]:
     """A PNG through pypng (16 bits kept): size checked from the header first."""
 
     try:
         with open(path, "rb") as f:
             reader = png.Reader(file=f)
             reader.preamble()
-            _check_pixels(reader.width, reader.height, path, limit)
+            _check_pixels(reader.width, reader.height, path, limit, advice)
             w, h, rows, info = reader.asDirect()
             a = np.empty((h, w * info["planes"]), np.uint16)
             n = 0
@@ -637,12 +639,12 @@ def _png_orientation(path: Path) -> int:
             f.seek(length + 4, os.SEEK_CUR)
 
 
-def _read_pillow(path: Path, limit: int) -> tuple[np.ndarray, int, bool]:
+def _read_pillow(path: Path, limit: int, advice: str | None = None) -> tuple[np.ndarray, int, bool]:
     """A JPEG (or TIFF, WebP, BMP) through Pillow: size checked from the header first."""
 
     try:
         with _pillow_guard(), Image.open(path, formats=_PILLOW_FORMATS) as im:
-            _check_pixels(im.width, im.height, path, limit)
+            _check_pixels(im.width, im.height, path, limit, advice)
             im = ImageOps.exif_transpose(im)
             bands = im.getbands()
             grey = "R" not in bands and im.mode != "P"

@@ -666,3 +666,14 @@ def test_a_table_too_long_to_fit_is_refused_naming_the_limit(cli, tmp_path, monk
     assert len(read_measurements(tmp_path / "small.csv", max_rows=20).values) == 19  # and the paper's row
     monkeypatch.setenv("DIFFWASH_MAX_TABLE_ROWS", "20")
     assert len(read_measurements(tmp_path / "small.csv").values) == 19
+
+
+def test_a_paper_image_larger_than_a_tile_is_refused_from_its_header(cli, tmp_path):
+    # One tile, repeated over the picture, its textures made at its size: an 8192^2 image took 7.5 GB and 600 s.
+    png_bomb(tmp_path / "paper.png", side=8000)
+    write_scene(tmp_path, watercolour={"paper": {"image": "paper.png"}})
+    status, err, mb = peak_rss_of(["render", "scene.json", "-o", "x.png"], tmp_path, timeout=60)
+    refused((status, "", err), "scene.json: watercolour.paper.image", "8000x8000", "over the limit of 4,194,304",
+            "crop or scale it to 2048x2048")  # fmt: skip
+    assert mb < 800, f"refusing the paper image took {mb:.0f} MB"
+    assert not (tmp_path / "x.png").exists()

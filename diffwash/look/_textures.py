@@ -43,7 +43,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .._errors import DiffwashError
-from .._io import read_image
+from .._io import max_image_pixels, read_image
 from .._lazy import lazy
 
 spatial = lazy("scipy.spatial")
@@ -67,6 +67,9 @@ CHANNELS = ("paper", "shade", "turbulence_wash", "dispersion_wash", "turbulence_
 PAPER_LIGHT = (-0.5792, 0.5792, 0.5736)
 #: Smallest tile side accepted for a paper image, in texels.
 MIN_TILE = 8
+#: Most texels accepted in a paper image (2048 x 2048), checked from its header: it is one tile, repeated over the
+#: picture, and its textures are made at its size (an 8192^2 image took 7.5 GB and over 600 s for a 64^2 render).
+MAX_TILE_PIXELS = 2048 * 2048
 
 
 def _frequencies(shape: tuple[int, int]) -> np.ndarray:
@@ -223,7 +226,9 @@ def paper_from_image(path: str | os.PathLike, *, field: str = "paper") -> np.nda
     `(rows, columns)` float64 heights in [0, 1].
     """
     try:
-        rgb, _ = read_image(path, colour=False, opaque=False)
+        rgb, _ = read_image(path, colour=False, opaque=False, max_pixels=min(MAX_TILE_PIXELS, max_image_pixels()),
+                            advice="a paper image is one tile repeated over the picture: crop or scale it to "
+                                   "2048x2048 pixels or fewer")  # fmt: skip
     except DiffwashError as e:
         raise DiffwashError(e.problem, file=path, field=field) from None
     if min(rgb.shape[:2]) < MIN_TILE:

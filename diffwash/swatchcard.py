@@ -245,8 +245,11 @@ def make_swatch_card(
     layout["patches"] = patches
     if effects.unevenness > 0:
         thickness *= 1 + effects.unevenness * _smooth_noise(rng, (H, W), 4.0)
-    R, T = km.layer(np.asarray(pigment.K), np.asarray(pigment.S), np.maximum(thickness, 0)[..., None])
-    card = np.asarray(km.over(R, T, ground), np.float64)
+    card = np.empty((H, W, 3), np.float64)
+    rows = max(1, (1 << 18) // W)  # the glaze composited in bands of rows: its temporaries are the band's size
+    for y in range(0, H, rows):
+        R, T = km.layer(np.asarray(pigment.K), np.asarray(pigment.S), np.maximum(thickness[y : y + rows], 0)[..., None])
+        card[y : y + rows] = np.asarray(km.over(R, T, ground[y : y + rows]), np.float64)
     return SwatchCard(photo=_photograph(card, effects, rng), layout=layout, pigment=pigment, paper=paper,
                       ink=ink_rgb if black else None, effects=effects)  # fmt: skip
 

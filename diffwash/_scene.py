@@ -205,6 +205,10 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
                     f"(vertex {bad}: {vertices[bad].tolist()})", where, field)  # fmt: skip
     if faces.ndim != 2 or faces.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
         raise _fail(f"mesh {path} has faces that name vertices it does not have", where, field)
+    v = vertices[faces]
+    if not np.any(np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1) > 0):
+        raise _fail(f"mesh {path} has no triangle of non-zero area (each of its {len(faces)} is a point or a "
+                    f"line): nothing to draw", where, field)  # fmt: skip
     normals = None
     if file_normals is not None and np.shape(file_normals) == vertices.shape:
         n = np.asarray(file_normals, np.float64)

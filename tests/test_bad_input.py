@@ -677,3 +677,20 @@ def test_a_paper_image_larger_than_a_tile_is_refused_from_its_header(cli, tmp_pa
             "crop or scale it to 2048x2048")  # fmt: skip
     assert mb < 800, f"refusing the paper image took {mb:.0f} MB"
     assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("look", [None, {}])
+def test_degenerate_meshes_render_quietly_or_are_refused_in_one_line(cli, tmp_path, look):
+    extra = {} if look is None else {"watercolour": look}
+    # Some triangles of zero area (a line, a point) among real ones: drawn, without a warning.
+    (tmp_path / "some.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\nf 1 1 4\n")
+    write_scene(tmp_path, mesh="some.obj", **extra)
+    status, _, err = cli("render", "scene.json", "-o", "x.png")
+    assert status == 0 and err == "", err
+    # Only such triangles: nothing to draw (with the look, a stroke length was blamed on a mesh of size 0).
+    for name, text in (("line.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n"), ("point.obj", "v 0 0 0\n" * 3 + "f 1 2 3\n")):
+        (tmp_path / name).write_text(text)
+        write_scene(tmp_path, mesh=name, **extra)
+        refused(cli("render", "scene.json", "-o", "y.png"), f"scene.json: mesh: mesh {name} has no triangle of "
+                "non-zero area")  # fmt: skip
+    assert not (tmp_path / "y.png").exists()

@@ -644,13 +644,15 @@ def _signature(detail: str) -> str:
 def fuzz(reader: Reader, n: int, folder: Path, *, seed_value: int = 0, limit: float = 10.0) -> Tally:
     """Run `n` generated inputs through `reader`; never stops at a crash (they are counted and kept)."""
     tally = Tally()
+    first = [True]  # the first input pays for the reader's lazy imports (JAX, colour: seconds on a busy machine)
 
     @seed(seed_value)
     @settings(max_examples=n, deadline=None, database=None, phases=[Phase.generate],
               suppress_health_check=list(HealthCheck))  # fmt: skip
     @given(drawn=reader.files, option=reader.options)
     def one(drawn: Any, option: Any) -> None:
-        out = run_one(reader, drawn, option, folder, limit)
+        out = run_one(reader, drawn, option, folder, max(limit, 300.0) if first[0] else limit)
+        first[0] = False
         tally.inputs += 1
         if out.kind == "crash":
             tally.crashes += 1

@@ -63,7 +63,7 @@ from ._io import check_float32, open_input
 
 __all__ = [
     "Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture", "parse_stack", "format_stack",
-    "split_layers", "refuse_colliding_names", "refuse_absurd_amounts",
+    "split_layers", "refuse_colliding_names", "refuse_absurd_amounts", "max_table_rows", "too_many_rows",
 ]  # fmt: skip
 
 #: Reflectance above this is taken for a table in percent, not a brightener's glow.
@@ -315,6 +315,13 @@ def max_table_rows() -> int:
     return int(n)
 
 
+def too_many_rows(limit: int, path: Any, line: int) -> DiffwashError:
+    """The refusal of a table whose row at `line` is one more than `limit`."""
+    return _fail(f"has more than {limit:,} rows of measurements, the most fitted at once (memory and time grow with "
+                 f"the rows: docs/scaling.md); fit a sample of the rows, or raise the limit with {ROWS_ENV}=N", path,
+                 line)  # fmt: skip
+
+
 def _read_csv(path: Path, max_rows: int | None = None) -> tuple[list[str], list[tuple[int, list[str]]]]:
     """The header and the non-blank rows `(line, values)`; more than `max_rows` rows are refused as they come."""
     body = []
@@ -326,9 +333,7 @@ def _read_csv(path: Path, max_rows: int | None = None) -> tuple[list[str], list[
                 if not (row and any(c.strip() for c in row)):
                     continue
                 if max_rows is not None and len(body) >= max_rows:
-                    raise _fail(f"has more than {max_rows:,} rows of measurements, the most fitted at once (memory and "
-                                f"time grow with the rows: docs/scaling.md); fit a sample of the rows, or raise the "
-                                f"limit with {ROWS_ENV}=N", path, reader.line_num)  # fmt: skip
+                    raise too_many_rows(max_rows, path, reader.line_num)
                 body.append((reader.line_num, row))
     except (OSError, UnicodeDecodeError, csv.Error) as e:
         raise _fail(f"cannot read as CSV: {e}", path) from None

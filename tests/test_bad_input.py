@@ -656,6 +656,11 @@ def test_a_table_too_long_to_fit_is_refused_naming_the_limit(cli, tmp_path, monk
     (tmp_path / "big.csv").write_text("\n".join([head, *rows]) + "\n")
     refused(cli("fit-swatch", "--table", "big.csv", "-o", "lib.json"), f"big.csv: line {MAX_TABLE_ROWS + 2}",
             f"more than {MAX_TABLE_ROWS:,} rows", "DIFFWASH_MAX_TABLE_ROWS=N")  # fmt: skip
+    # A one-pigment RGB table too (its own reader, fitted pigment by pigment).
+    head_rgb, *body_rgb = (DATA / "examples" / "measurements.csv").read_text().splitlines()
+    (tmp_path / "rgb.csv").write_text("\n".join([head_rgb, *(body_rgb * 200)]) + "\n")
+    refused(cli("fit-swatch", "--table", "rgb.csv", "-o", "lib.json"), f"rgb.csv: line {MAX_TABLE_ROWS + 2}",
+            f"more than {MAX_TABLE_ROWS:,} rows")  # fmt: skip
     monkeypatch.setenv("DIFFWASH_MAX_TABLE_ROWS", "lots")
     refused(cli("fit-swatch", "--table", "big.csv", "-o", "lib.json"), "DIFFWASH_MAX_TABLE_ROWS: must be a whole number")
     assert not (tmp_path / "lib.json").exists()

@@ -46,7 +46,7 @@ from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import check_float32, open_input
 from ..library import Library, library_from_pigments
-from ..measurements import refuse_absurd_amounts, refuse_colliding_names, rgb_scale
+from ..measurements import max_table_rows, refuse_absurd_amounts, refuse_colliding_names, rgb_scale, too_many_rows
 from ..pigments import Pigment
 from ._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
 from ._kmfit import paired_start
@@ -144,6 +144,9 @@ def read_table(path: str | os.PathLike, *, linear: bool = False) -> MeasurementT
         raise _fail(f"missing column{'s' if len(missing) > 1 else ''} {listed} (the header must name "
                     f"{','.join(COLUMNS)}; found {','.join(h.strip() for h in header)})", path)  # fmt: skip
     col = {c: names.index(c) for c in COLUMNS}
+    filled = [line for line, row in body if row and any(c.strip() for c in row)]
+    if len(filled) > max_table_rows():
+        raise too_many_rows(max_table_rows(), path, filled[max_table_rows()])
     pig, amt, gnd, vals, lines = [], [], [], [], []
     for line, row in body:
         if not row or all(not c.strip() for c in row):

@@ -643,8 +643,9 @@ def test_a_large_photo_is_linearised_in_blocks():
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    # Decoded whole, the transfer function's float64 temporaries took 8 times the photo.
-    assert peak < 1.5 * display.nbytes, f"linearising a {display.nbytes / 2**20:.0f} MB photo took {peak / 2**20:.0f} MB"
+    # The result and a block's temporaries: 1.6 times the photo. Decoded whole, the transfer function's float64
+    # temporaries took 7 times the photo.
+    assert peak < 2 * display.nbytes, f"linearising a {display.nbytes / 2**20:.0f} MB photo took {peak / 2**20:.0f} MB"
     assert np.array_equal(linear[:10], expected)
 
 

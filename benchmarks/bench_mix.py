@@ -123,8 +123,12 @@ def cross_validate(name: str, path: Path, model: MixModel | None, folds: int) ->
         if model is None:
             scores.append(_mixbox_score(m, test) | {"held": float("nan")})
         else:
+            t1 = time.perf_counter()
             lib = fit_mixtures(m.select(train), model=model).library
             scores.append(score_library(lib, m.select(test)) | {"held": _held_by_regions(lib, m.select(test))})
+            s = scores[-1]
+            print(f"  fold {len(scores)}: {s['rows']} rows, {100 * s['share_de_ab_5']:.1f}%, {s['mean_de2000']:.2f}, "
+                  f"held by the 90% regions {100 * s['held']:.1f}% ({time.perf_counter() - t1:.0f} s)", flush=True)
     n = sum(s["rows"] for s in scores)
     share = sum(s["share_de_ab_5"] * s["rows"] for s in scores) / n
     mean = sum(s["mean_de2000"] * s["rows"] for s in scores) / n

@@ -10,7 +10,8 @@ $$ \mathrm{Lab}_n(\theta_d) - \mathrm{Lab}_n(\hat\theta) + s_c\, e_d, \qquad
 
 the parameters drawn from their posterior and pushed through the model (not linearised:
 see `lab_draws`), $s_c$ the model error of the row's kind $c$: a single paint, a mixture of a set of paints the
-table measured mixed (`seen`), or one it never did (`unseen`). `de2000_90` is the
+table measured mixed (`seen`), one it never did of paints it measured in other mixtures (`unseen`), or one
+holding a paint it never measured mixed at all (`unmixed`). `de2000_90` is the
 CIEDE2000 radius around the prediction that holds 90% of those draws (`DRAWS`, a fixed
 seed; CIEDE2000 is not a Euclidean distance in Lab, hence Monte Carlo).
 
@@ -33,8 +34,8 @@ from ._errors import DiffwashError
 
 __all__ = ["KINDS", "Posterior", "kinds", "lab_draws", "radius90", "de2000_90"]
 
-#: The kinds of row a model error is kept for.
-KINDS = ("single", "seen", "unseen")
+#: The kinds of row a model error is kept for (`kinds`).
+KINDS = ("single", "seen", "unseen", "unmixed")
 #: Monte Carlo draws (of the parameters, each with a draw of the model error) per row, and their seed.
 DRAWS = 400
 SEED = 0
@@ -97,12 +98,20 @@ def _nonneg(v: Any) -> bool:
 
 
 def kinds(pigments, seen) -> list[str]:
-    """Each row's kind: `single` (one distinct pigment), `seen` (a set measured mixed), else `unseen`."""
-    seen = {tuple(sorted(s)) for s in seen}
+    """Each row's kind: `single` (one distinct pigment), `seen` (a set measured mixed), `unmixed` (a mixture holding
+    a pigment the table never measured mixed with anything), else `unseen` (pigments each measured mixed, never
+    together)."""
+    sets = {tuple(sorted(x.lower() for x in s)) for s in seen}
+    mixed = {x for s in sets for x in s}
     out = []
     for names in pigments:
         key = tuple(sorted({n.lower() for n in names}))
-        out.append("single" if len(key) == 1 else ("seen" if key in {tuple(sorted(x.lower() for x in s)) for s in seen} else "unseen"))
+        if len(key) == 1:
+            out.append("single")
+        elif key in sets:
+            out.append("seen")
+        else:
+            out.append("unseen" if set(key) <= mixed else "unmixed")
     return out
 
 

@@ -25,7 +25,7 @@ The file is JSON:
                "gamma": 0.8}, "mixing_weight": 1.0}, ...],
  "grounds": {"paper": [...]}, "surface": {"k2": 0.0}, "fit": {...},
  "uncertainty": {"factor": [[...], ...], "diagonal": [...], "model_error": {"single": 0.4, "seen": 0.9,
-                 "unseen": 2.1}, "seen": [["P1", "P4"], ...], "record": {...}}}
+                 "unseen": 2.1, "unmixed": 9.0}, "seen": [["P1", "P4"], ...], "record": {...}}}
 ```
 
 `"observation": {"bands": "sRGB"}` for a library per linear sRGB channel: what the fits of three-channel data
@@ -40,7 +40,9 @@ library: amount law `t(a) = a^gamma` (gamma from its fit record, else 1), ground
 covariance of the parameters $\theta$ (per pigment $\log K$ over the bands, then per pigment $\log S$, then
 each pigment's $\log\gamma$: n = 2PB + P) as $F F^\top + \mathrm{diag}(d)$, `factor` $F$ of n rows and
 `diagonal` $d$ of n numbers; the model error $s$ (CIELAB units per axis) of single paints, of mixtures of sets
-of pigments the table measured mixed (`seen`, listed) and of the others (`unseen`). A library without it
+of pigments the table measured mixed (`seen`, listed), of the others (`unseen`) and, where the table has a paint it
+never measured mixed, of mixtures holding such a paint (`unmixed`; files written before have no such kind, and
+those rows get no region). A library without it
 (older files, RGB fits, `fit_mixtures(..., posterior=False)`) loads and predicts as before, its `de2000_90`
 None and `diffwash predict` writes no such column; a kind without a model error gets no region (NaN, an
 empty cell).

@@ -3,6 +3,7 @@ file's uncertainty record, and libraries without one."""
 
 import json
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -57,9 +58,49 @@ def _dE(a, b):
     return colorimetry.delta_e_2000(jnp.asarray(a), jnp.asarray(b))
 
 
-def test_rows_are_single_seen_or_unseen():
-    got = _regions.kinds([("A",), ("A", "A"), ("B", "A"), ("A", "C"), ("a", "b")], (("A", "B"),))
-    assert got == ["single", "single", "seen", "unseen", "seen"]
+def test_rows_are_single_seen_unseen_or_unmixed():
+    seen = (("A", "B"), ("B", "C"))
+    got = _regions.kinds([("A",), ("A", "A"), ("B", "A"), ("A", "C"), ("a", "b"), ("A", "D"), ("D", "E")], seen)
+    assert got == ["single", "single", "seen", "unseen", "seen", "unmixed", "unmixed"]
+    # A table without mixtures: every mixture holds a paint never measured mixed.
+    assert _regions.kinds([("A", "B")], ()) == ["unmixed"]
+
+
+def test_a_pigment_fitted_at_its_scattering_edge_gets_a_bounded_region_from_its_own_rows():
+    """Issue 24: a paint fitted to S near 0 has a Laplace variance of log S its own rows refute further out (drawn
+    at S ~ 1 it turns opaque): unbounded, every region of it was ~60 CIEDE2000. Bounded by its own single rows,
+    its draws stay where those rows hold, and a well determined paint keeps its posterior."""
+    P, B = 2, 4
+    lib = _library()
+    pal = eqx.tree_at(lambda p: p.S, lib.palette, jnp.asarray([[0.5, 0.6, 0.7, 0.8], [1e-4] * 4]))
+    n = 2 * P * B + P
+    diag = np.full(n, 1e-4)
+    diag[P * B + B : 2 * P * B] = 75.0**2  # B's log S: left free by the linearisation at S = 1e-4
+    F = np.zeros((n, 1))
+    amounts = (0.005, 0.01, 0.015, 0.02, 0.03, 0.04, 0.06, 0.08, 0.12, 0.16)
+    k = len(amounts)
+    A = np.zeros((2 * k, 1, 2))
+    A[:k, 0, 0], A[k:, 0, 1] = amounts, amounts
+    G = np.full((2 * k, 4), 0.85)
+    obs = lib.observation
+    lab_pred = np.asarray(obs.lab(pal.stack_reflectance(jnp.asarray(A), jnp.asarray(G), 0.0)))
+    lab_true = lab_pred + np.random.default_rng(0).normal(0, 0.5, lab_pred.shape)  # rows fitted to about 0.5
+    owner = _posterior.owners(P, B)
+
+    def draw(a):
+        return _regions.lab_draws(_regions.Posterior(*_posterior.scaled(F, diag, a, owner), {}), pal, A, G, 0.0, obs.lab)
+
+    wide = _regions.radius90(lab_pred, draw(np.ones(P)), np.zeros(2 * k))
+    a = _posterior.shrink_per_pigment(draw, np.repeat([0, 1], k), P, lab_true, lab_pred)
+    bounded = _regions.radius90(lab_pred, draw(a), np.zeros(2 * k))
+    assert a[0] == 1.0 and 0 < a[1] < 0.01  # only the paint whose rows refute its draws
+    assert np.median(wide[k:]) > 20 and np.all(np.isfinite(bounded)) and np.median(bounded[k:]) < 5
+    assert bounded[k:].max() < wide[k:].min()
+    np.testing.assert_allclose(bounded[:k], wide[:k])
+    # Its mixture with A gets a finite region, from the (bounded) draws and its kind's model error.
+    post = _regions.Posterior(*_posterior.scaled(F, diag, a, owner), {"unseen": 2.0, "unmixed": 5.0}, ())
+    r = _regions.de2000_90(post, pal, A[:1] + A[k : k + 1], G[:1], 0.0, obs.lab, lab_pred[:1], [("A", "B")])
+    assert np.isfinite(r[0]) and 3 < r[0] < 15
 
 
 def test_predictions_carry_regions_that_widen_with_the_posterior_and_vanish_for_kinds_without_an_error():
@@ -136,3 +177,37 @@ def test_the_pigment_report_names_what_the_rows_left_free_and_the_measurement_th
     assert "over black" in rep[1]["measure"] and "never measured mixed" in rep[1]["measure"]
     lines = _posterior.uncertainty_lines(rep)
     assert len(lines) == 3 and lines[2].startswith("    B: log K 0.10, log S 2.00")
+
+
+def test_a_fold_is_refitted_from_the_fits_start_not_pulled_towards_the_full_fit(tmp_path):
+    """Issue 20: the held-out rows' predictions of a fold are those of a fit that never saw them. A generated table
+    whose true mixing weights the model lacks (so a pair's rows move the fit): the fold's refit predicts the held-out
+    pair as a fit of the other rows does, not as the full fit (which saw them) does."""
+    from test_mix_fit import GRID as G7, _truth, _write_table
+
+    from diffwash import measurements
+    from diffwash.fit import MixModel, _mixfit, _seen, fit_mixtures
+
+    pal, paper = _truth(weights=(1.0, 4.0, 0.25))
+    _write_table(tmp_path / "t.csv", pal, paper)
+    m = measurements.read_measurements(tmp_path / "t.csv")
+    test = np.array([set(p) == {"A", "B"} for p in m.pigments])
+    model = MixModel(pairs=False)
+    full = fit_mixtures(m, model=model, posterior=False).library
+    direct = fit_mixtures(m.select(~test), model=model, posterior=False).library
+    names, P = list(m.names), len(m.names)
+    A, G = (jnp.asarray(x) for x in _mixfit._dense(m, names))
+    obs = full.observation
+    reflect = _mixfit._Reflect(A, G, P, model)
+    band0 = jnp.asarray(_mixfit._init_band(m, np.asarray(A), names))
+    spectral = _mixfit._SpectralResiduals(reflect, jnp.asarray(m.values), band0)
+    band = jnp.log(jnp.concatenate([full.palette.K.T, full.palette.S.T], axis=1))
+    lab_m = jnp.asarray(_mixfit.measured_lab(m, obs))
+    pb = _seen._Problem(reflect, obs.lab, lab_m, band, model.ridge, _mixfit._SharedPrior(P, model))
+    start = (band0, jnp.zeros(2 * P + 1).at[2 * P].set(-3.0))
+    (held,) = _posterior.refit_held_out(spectral, start, pb, [test], rtol=1e-7)
+    rows = (m.select(test).pigments, m.select(test).amounts, m.select(test).ground)
+    lab_full, lab_direct = full.predict(*rows).lab, direct.predict(*rows).lab
+    off = lambda a, b: float(np.mean(_dE(a, b)))  # noqa: E731
+    assert off(lab_full, lab_direct) > 1.0  # the held-out pair moves the fit (else this test shows nothing)
+    assert off(held, lab_direct) < 0.3 * off(lab_full, lab_direct), (off(held, lab_direct), off(lab_full, lab_direct))

@@ -487,8 +487,8 @@ def fit_mixtures(
 
 
 def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library):
-    """The fit's `_regions.Posterior`: Laplace covariance from the spectral stage's problem, model error of each
-    kind of row (in-sample for single paints and seen pairs, approximate leave-pairs-out for unseen ones)."""
+    """The fit's `_regions.Posterior`: Laplace covariance from the spectral stage's problem, each pigment's block
+    bounded by its own rows, and the model error of each kind of row (`_model_errors`)."""
     P = len(names)
     dtype = jnp.zeros(()).dtype
     A, G = _dense(m, names)
@@ -500,39 +500,56 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     shared = jnp.asarray(np.concatenate([np.log(gam), np.log(w), [k2_logit]]), dtype)
     reflect = _Reflect(A, G, P, model)
     band0 = jnp.asarray(_init_band(m, np.asarray(A), names), dtype)
-    F, diag, sigma = _posterior.laplace(_SpectralResiduals(reflect, Y, band0), (band, shared), len(m), P, model.gamma)
+    spectral = _SpectralResiduals(reflect, Y, band0)
+    F, diag, sigma = _posterior.laplace(spectral, (band, shared), len(m), P, model.gamma)
     lab_m = measured_lab(m, obs)
-    folds = [t for _, t in pair_folds(m) if t.any()]
-    pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge), _SharedPrior(P, model))
-    held = _posterior.held_out_lab(pb, (band, shared), folds)
     pred = lib.predict(m.pigments, m.amounts, m.ground)
     kind = np.array(_regions.kinds(m.pigments, pairs(m)))
     An, Gn = np.asarray(A), np.asarray(G)
+    owner = _posterior.owners(P, int(band.shape[0]))
 
     def draw(a, sel=slice(None)):
-        return _regions.lab_draws(_regions.Posterior(np.sqrt(a) * F, a * diag, {}), palette, An[sel], Gn[sel], k2,
-                                  obs.lab)  # fmt: skip
+        return _regions.lab_draws(_regions.Posterior(*_posterior.scaled(F, diag, a, owner), {}), palette, An[sel],
+                                  Gn[sel], k2, obs.lab)  # fmt: skip
 
     one = kind == "single"
-    a = _posterior.shrink_to_rows(lambda a: draw(a, one), lab_m[one], pred.lab[one]) if one.any() else 1.0
-    F, diag = np.sqrt(a) * F, a * diag
-    spread = draw(1.0)
-    scale, rows = {}, {}
+    index = {n: i for i, n in enumerate(names)}
+    row_pigment = np.array([index[p[0]] for p, k in zip(m.pigments, kind) if k == "single"], int)
+    a = _posterior.shrink_per_pigment(lambda a: draw(a, one), row_pigment, P, lab_m[one], pred.lab[one])
+    F, diag = _posterior.scaled(F, diag, a, owner)
+    pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge), _SharedPrior(P, model))
+    start = (band0, jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0))  # the fit's own start (`_fit_spectral`)
+    refit = lambda folds: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
+                                                    rtol=1e-7 if dtype == jnp.float64 else 1e-4)  # fmt: skip
+    scale, rows, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit)
+    record = {"noise_log_reflectance": round(sigma, 6),
+              "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
+              "model_error": {k: round(v, 4) for k, v in scale.items()}, "rows": rows, **how,
+              "pigments": _posterior.pigment_report(F, diag, names, int(band.shape[0]),
+                                                    {n for p in pairs(m) for n in p})}  # fmt: skip
+    return _regions.Posterior(F, diag, scale, tuple(pairs(m)), record)
+
+
+def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
+    """The model error of each kind of row (`_regions.KINDS`): of the table's own rows for `single` and `seen`;
+    for `unseen`, of the held-out rows of leave-pairs-out folds, and for `unmixed`, of folds that hold out every
+    mixture of one paint (only where the table has a paint it never mixed: else no row can be of that kind),
+    each fold refitted from the fit's start by `refit(folds)` -> each fold's held-out CIELAB."""
+    scale, rows, how = {}, {}, {}
     for k in ("single", "seen"):
         sel = kind == k
         rows[k] = int(sel.sum())
         if sel.any():
-            scale[k] = _posterior.calibrate_scale(lab_m[sel], pred.lab[sel], spread[:, sel])
-    test = np.concatenate([np.flatnonzero(t) for t in folds]) if folds else np.zeros(0, int)
-    rows["unseen"] = len(test)
-    if len(test):
-        scale["unseen"] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test])
-    record = {"noise_log_reflectance": round(sigma, 6), "covariance_scale": round(a, 4),
-              "model_error": {k: round(v, 4) for k, v in scale.items()},
-              "rows": rows, "unseen_from": f"approximate leave-pairs-out cross-validation, {len(folds)} folds",
-              "pigments": _posterior.pigment_report(F, diag, names, int(band.shape[0]),
-                                                    {n for p in pairs(m) for n in p})}  # fmt: skip
-    return _regions.Posterior(F, diag, scale, tuple(pairs(m)), record)
+            scale[k] = _posterior.calibrate_scale(lab_m[sel], lab_p[sel], spread[:, sel])
+    for k, folds, what in (("unseen", [t for _, t in pair_folds(m)], "leave-pairs-out"),
+                           ("unmixed", paint_folds(m), "leave-one-paint's-mixtures-out")):  # fmt: skip
+        folds = [t for t in folds if t.any()]
+        test = np.concatenate([np.flatnonzero(t) for t in folds]) if folds else np.zeros(0, int)
+        rows[k] = len(test)
+        if len(test):
+            scale[k] = _posterior.calibrate_scale(lab_m[test], np.concatenate(refit(folds)), spread[:, test])
+            how[f"{k}_from"] = f"{what} cross-validation, {len(folds)} folds refitted from the fit's start"
+    return scale, rows, how
 
 
 def measured_lab(m: Measurements, obs: spectral.Observation) -> np.ndarray:
@@ -582,6 +599,18 @@ def pair_folds(m: Measurements, folds: int = 4, seed: int = 0) -> list[tuple[np.
         test = np.array([any(k in held for k in ks) for ks in key], bool)
         out.append((~test, test))
     return out
+
+
+def paint_folds(m: Measurements, most: int = 3, seed: int = 0) -> list[np.ndarray]:
+    """Test-row masks of folds that each hold out every mixture of one paint, for `most` paints at most (drawn with
+    `seed`): a fit that never saw that paint mixed, as a library that never saw a paint mixed must predict its
+    mixtures. None where every paint of the table is measured mixed (no query can then be of that kind)."""
+    mixed = sorted({n for p in pairs(m) for n in p})
+    if not mixed or set(m.names) <= set(mixed):
+        return []
+    key = [_mixed_sets(m, r) for r in range(len(m))]
+    chosen = np.random.default_rng(seed).permutation(len(mixed))[:most]
+    return [np.array([any(mixed[i] in k for k in ks) for ks in key], bool) for i in sorted(chosen)]
 
 
 def score_library(lib: Library, m: Measurements) -> dict[str, float]:

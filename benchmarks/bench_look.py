@@ -9,7 +9,7 @@
    attributes, the G-buffer, the image terms with the edge blur, the glaze at the covered pixels, the paper's
    shading), no hatching. Rounds alternate; medians.
 2. OpenGL (llvmpipe without a GPU), --gl-size^2, the showcase's 100k triangles: the exported LUT shader
-   (the plain preview) against the look's passes (`diffwash.look._frame.LookFrame`: geometry pass into a
+   (the plain preview) against the look's passes (`diffwash._look_frame.LookFrame`: geometry pass into a
    float G-buffer with the shadow looked up per vertex and hatching, three edge passes on a reduced grid, the final
    pass with the 3D mix LUT), with and without hatching. Frames alternate in rounds; medians and the median
    of per-round ratios.
@@ -165,7 +165,7 @@ def gl_costs(size: int, seconds: float, rounds: int) -> dict:
     import equinox as eqx
 
     from diffwash import preview
-    from diffwash.look._frame import LookFrame
+    from diffwash._look_frame import LookFrame
 
     ctx = preview.create_context()
     scene = diffwash.load_scene(SHOWCASE)
@@ -232,8 +232,8 @@ def gl_profile(size: int, rounds: int) -> dict:
     exported preview, the frame rate's ceiling.
     """
     from diffwash import preview
-    from diffwash.look import _gl
-    from diffwash.look._frame import LookFrame, _set_uniforms, geometry_sources
+    from diffwash import _look_glsl as _gl
+    from diffwash._look_frame import LookFrame, _set_uniforms, geometry_sources
 
     ctx = preview.create_context()
     scene = diffwash.load_scene(SHOWCASE)
@@ -282,11 +282,8 @@ def _bound_fragment(*, hatching: bool = True, lut: bool = True, screen: bool = T
     """A one-pass fragment shader doing the look's per-pixel work (`glsl_surface`, then `glsl_final_pass`'s
     per-pixel terms) on the interpolated attributes of `geometry_sources`' vertex shader; no edge darkening."""
     from diffwash._glsl import functions_source
-    from diffwash.look import _gl
-    from diffwash.look._look import glsl_surface
-    from diffwash.look._mix import glsl_mix_lut
-    from diffwash.look._paper import glsl_paper
-    from diffwash.look._strokes import glsl_strokes
+    from diffwash import _look_glsl as _gl
+    from diffwash._look_glsl import glsl_mix_lut, glsl_paper, glsl_strokes, glsl_surface
 
     ins = "in float v_shadow;\nin vec3 world_position;\nin vec3 world_normal;\nin float v_mix;\nin float v_stroke;\n"
     out = "layout(location = 0) out vec4 colour;\n"
@@ -298,7 +295,6 @@ def _bound_fragment(*, hatching: bool = True, lut: bool = True, screen: bool = T
         + glsl_paper() + glsl_strokes() + glsl_mix_lut() + ins + out
         + "uniform vec3 eye_forward;\nuniform float look_pixel_scale;\nuniform int look_rows;\n"
         "uniform sampler2D look_screen0;\nuniform sampler2D look_screen1;\n"
-        "uniform vec4 look_wash_pigment;\nuniform vec4 look_wash_pigment_b;\nuniform vec4 look_unlit_pigment;\nuniform vec4 look_unlit_pigment_b;\n"
         "void main() {\n"
         "    vec3 N = safe_normalize(world_normal);\n"
         "    vec2 t = watercolour_thickness(N, safe_normalize(light_direction), safe_normalize(eye - world_position));\n"
@@ -311,7 +307,7 @@ def _bound_fragment(*, hatching: bool = True, lut: bool = True, screen: bool = T
         "    float u = t.y * b * mix(look_pigment_factor(s0.x, look_unlit_pigment), look_pigment_factor(s0.x, look_unlit_pigment_b), m)"
         " * look_unevenness_factor(s1.x, s1.y);\n"
         + ("    vec3 c = look_mix_colour(w, u, m);\n" if lut else "    vec3 c = vec3(w, u, m);\n")
-        + "    colour = vec4(pow(clamp(look_paper_shading_apply(c, s0.y), 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);\n}\n"
+        + "    colour = vec4(pow(clamp(look_paper_relief(c, s0.y), 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);\n}\n"
     )
 
 
@@ -319,7 +315,7 @@ def gl_bound(size: int, seconds: float, rounds: int) -> dict:
     """Frames per second of `_bound_fragment`'s variants (the showcase at size^2, every texture and uniform
     as `LookFrame` sets them) and of the plain LUT shader, in alternating rounds."""
     from diffwash import preview
-    from diffwash.look._frame import LookFrame, _bind, _set_uniforms, geometry_sources
+    from diffwash._look_frame import LookFrame, _bind, _set_uniforms, geometry_sources
 
     ctx = preview.create_context()
     scene = diffwash.load_scene(SHOWCASE)

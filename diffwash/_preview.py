@@ -21,7 +21,7 @@ from ._errors import DiffwashError, FailureError
 from ._glsl import shader_sources, uniform_values
 from .colorimetry import to_display
 from ._scene import Scene
-from .look._frame import LookFrame
+from ._look_frame import LookFrame
 from .lut import Lut, bake, load_encoded
 from .shading import Params, check_per_channel, paper_colour
 
@@ -220,7 +220,7 @@ def render(
 
     `(H, W, 3)` float32, row 0 at the top; uncovered pixels show the paper.
     A scene with a watercolour look is drawn by the look's passes
-    (`diffwash.look._frame.LookFrame`: its own 3D mix LUT, per-pixel
+    (`diffwash._look_frame.LookFrame`: its own 3D mix LUT, per-pixel
     thicknesses; `lut`, `shading` and `colour` do not apply, `linear` is refused).
     """
     own = ctx is None

@@ -49,21 +49,37 @@ from ._rasterize import rasterize as rasterize_op
 __all__ = ["Watercolour", "parse_watercolour", "watercolour_to_dict", "watercolour_files", "WATERCOLOUR_KEYS",
            "LOOK_PARAMETERS", "look_parameter_check"]
 
-#: The keys of each effect's object, with their defaults (None: no default, the key is optional).
-WATERCOLOUR_KEYS: dict[str, dict[str, Any]] = {
-    "paper": {"image": None, "seed": 0, "relief": 2.0, "granulation": wl.DEFAULT_LOOK["granulation"],
-              "density": wl.DEFAULT_LOOK["density"], "shading": wl.DEFAULT_LOOK["paper_shading"]},
-    "edges": {"darkening": wl.DEFAULT_LOOK["edge_darkening"], "width": wl.DEFAULT_LOOK["edge_width"]},
-    "unevenness": {"turbulence": wl.DEFAULT_LOOK["turbulence"], "dispersion": wl.DEFAULT_LOOK["dispersion"]},
-    "strokes": {"amplitude": wl.DEFAULT_LOOK["strokes"], "direction": "max", "length": 0.25, "seed": 0},
-    "shadow": {"strength": wl.DEFAULT_LOOK["shadow"], "bias": wl.DEFAULT_LOOK["shadow_bias"]},
-    "hatching": {"amount": 0.5, "scale": 190.0},
+#: Each effect's scene keys that are not `Look` leaves (files, seeds, choices, sizes), with their defaults (None:
+#: no default, the key is optional), in the documented order. The leaves' keys, defaults and bounds are declared
+#: once, on `Look` (`look.leaf_specs`): an effect with leaves only needs no entry here (it comes last).
+_OPTIONS: dict[str, dict[str, Any]] = {
+    "paper": {"image": None, "seed": 0, "relief": 2.0},
+    "edges": {},
+    "unevenness": {},
+    "strokes": {"direction": "max", "length": 0.25, "seed": 0},
+    "shadow": {},
+    "hatching": {"scale": 190.0},
     "mix": {"wash": None, "unlit": None, "map": None},
-}  # fmt: skip
-#: Effects on unless the scene says otherwise (hatching and the mix are asked for).
-_ON_BY_DEFAULT = ("paper", "edges", "unevenness", "strokes", "shadow")
-#: Upper bounds of the keys that have one (fractions).
-_AT_MOST_ONE = {"paper.granulation", "shadow.strength", "hatching.amount"}
+}
+#: Scene keys of the `Look` leaves: leaf -> (effect, key).
+_LEAF_KEYS: dict[str, tuple[str, str]] = {leaf: (spec.effect, spec.key) for leaf, spec in wl.leaf_specs().items()}
+
+
+def _keys() -> dict[str, dict[str, Any]]:
+    """Every effect's keys with their defaults: its options, then its leaves' (their values when turned on)."""
+    out = {effect: dict(options) for effect, options in _OPTIONS.items()}
+    for spec in wl.leaf_specs().values():
+        out.setdefault(spec.effect, {})[spec.key] = spec.on
+    return out
+
+
+#: The keys of each effect's object, with their defaults (None: no default, the key is optional).
+WATERCOLOUR_KEYS: dict[str, dict[str, Any]] = _keys()
+#: Effects on unless the scene says otherwise: those whose leaves are on in `Look`'s defaults (hatching and
+#: the mix are asked for).
+_ON_BY_DEFAULT = tuple(dict.fromkeys(spec.effect for spec in wl.leaf_specs().values() if spec.fit and spec.default != 0))
+#: Upper bounds of the keys that have one.
+_AT_MOST = {f"{spec.effect}.{spec.key}": spec.at_most for spec in wl.leaf_specs().values() if spec.at_most is not None}
 
 
 class Watercolour(eqx.Module):
@@ -128,8 +144,9 @@ def _amount(settings: dict, effect: str, key: str, file: Any, *, positive: bool 
     v = float(check_float32(v, file=file, field=field))
     if v < 0 or (positive and v == 0):
         raise _fail(f"must be {'> 0' if positive else '>= 0'}, got {v!r}", file, field)
-    if f"{effect}.{key}" in _AT_MOST_ONE and v > 1:
-        raise _fail(f"must be within [0, 1], got {v!r}", file, field)
+    top = _AT_MOST.get(f"{effect}.{key}")
+    if top is not None and v > top:
+        raise _fail(f"must be within [0, {top:g}], got {v!r}", file, field)
     return v
 
 
@@ -217,17 +234,11 @@ def parse_watercolour(
         if k not in WATERCOLOUR_KEYS:
             raise _fail(f"unknown key; one of {', '.join(WATERCOLOUR_KEYS)}", file, f"watercolour.{k}")
     eff = {name: _effect(spec, name, file) for name in WATERCOLOUR_KEYS}
-    values = dict.fromkeys(wl.DEFAULT_LOOK, 0.0)
-    values["shadow_bias"] = wl.DEFAULT_LOOK["shadow_bias"]
-    names = {"paper": {"granulation": "granulation", "density": "density", "shading": "paper_shading"},
-             "edges": {"darkening": "edge_darkening", "width": "edge_width"},
-             "unevenness": {"turbulence": "turbulence", "dispersion": "dispersion"},
-             "strokes": {"amplitude": "strokes"}, "shadow": {"strength": "shadow", "bias": "shadow_bias"},
-             "hatching": {"amount": "hatching"}}  # fmt: skip
-    for effect, keys in names.items():
+    # An effect that is off contributes 0, but for a step (the shadow's bias), which keeps its default.
+    values = {leaf: 0.0 if spec.fit else spec.default for leaf, spec in wl.leaf_specs().items()}
+    for leaf, (effect, key) in _LEAF_KEYS.items():
         if eff[effect] is not None:
-            for key, leaf in keys.items():
-                values[leaf] = _amount(eff[effect], effect, key, file)
+            values[leaf] = _amount(eff[effect], effect, key, file)
     screen = _paper(eff["paper"], file, base)
     vertices = np.asarray(mesh.vertices, np.float64)
     strokes = None
@@ -270,19 +281,11 @@ def parse_watercolour(
     )
 
 
-#: Scene keys of the `Look` leaves: (effect, key) per leaf.
-_LEAF_KEYS = {"granulation": ("paper", "granulation"), "density": ("paper", "density"),
-              "paper_shading": ("paper", "shading"), "edge_darkening": ("edges", "darkening"),
-              "edge_width": ("edges", "width"), "turbulence": ("unevenness", "turbulence"),
-              "dispersion": ("unevenness", "dispersion"), "strokes": ("strokes", "amplitude"),
-              "shadow": ("shadow", "strength"), "shadow_bias": ("shadow", "bias"), "hatching": ("hatching", "amount")}  # fmt: skip
-
-
 #: The look's continuous parameters by their scene keys (`watercolour.<effect>.<key>` -> `Look` leaf): what
 #: fit-image can fit. The shadow's depth bias is left out (a step: its gradient is 0).
-LOOK_PARAMETERS: dict[str, str] = {f"watercolour.{e}.{k}": leaf for leaf, (e, k) in _LEAF_KEYS.items() if leaf != "shadow_bias"}
+LOOK_PARAMETERS: dict[str, str] = {f"watercolour.{s.effect}.{s.key}": leaf for leaf, s in wl.leaf_specs().items() if s.fit}
 #: The look parameters that are fractions in [0, 1] (the others are >= 0).
-LOOK_FRACTIONS = frozenset(f"watercolour.{k}" for k in _AT_MOST_ONE)
+LOOK_FRACTIONS = frozenset(f"watercolour.{k}" for k, top in _AT_MOST.items() if top == 1)
 
 
 def look_parameter_check(name: str, wc: Watercolour | None, file: Any) -> None:

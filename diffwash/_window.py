@@ -6,7 +6,7 @@ light, the wheel zooms, `V` toggles per-vertex / per-pixel, `R` resets, `Esc`
 closes. glfw is an optional dependency (`pip install 'diffwash[window]'`).
 
 A scene with a `"watercolour"` object is drawn by the look's passes
-(`diffwash.look._frame.LookFrame`, per-pixel thickness, at the scene's image
+(`diffwash._look_frame.LookFrame`, per-pixel thickness, at the scene's image
 size): the orbit updates the camera's uniforms, and moving the light draws
 the light's depth map again.
 """
@@ -22,9 +22,9 @@ from ._camera import Camera
 from ._errors import DiffwashError, FailureError
 from ._glsl import uniform_values
 from ._preview import Preview, has_display
-from .look import _gl
-from .look._frame import LookFrame
-from .look._shadow import glsl_depth_pass, light_view_projection
+from ._look_frame import LookFrame
+from ._look_glsl import glsl_depth_pass, header
+from .look import light_view_projection
 from .shading import SHADING_MODES
 
 __all__ = ["show"]
@@ -103,7 +103,7 @@ class _LookView:
         self.ctx, self.frame = ctx, LookFrame(ctx, scene, params)
         self.vertices = np.asarray(scene.mesh.vertices, np.float64)
         vert, frag = glsl_depth_pass()
-        head = _gl.header("glsl330")
+        head = header("glsl330")
         self.depth = ctx.program(vertex_shader=head + vert, fragment_shader=head + frag)
         self.depth_vao = ctx.vertex_array(self.depth, [(self.frame.vbo, "3f 20x", "position")], self.frame.ibo)
         size = self.frame.shadow_map.size

@@ -84,6 +84,11 @@ class _Jax:
     def logical_or(a: Any, b: Any) -> Any:
         return a | b
 
+    @staticmethod
+    def stack(xs: Sequence[Any]) -> Any:
+        """Point values as the channels of a vector (the last axis)."""
+        return jnp.stack(jnp.broadcast_arrays(*xs), axis=-1)
+
 
 JAX = _Jax()
 
@@ -366,6 +371,18 @@ class _Glsl:
         if a.size != 1 or b.size != 1:
             raise TypeError("GLSL has no componentwise || for boolean vectors")
         return _node("({0} || {1})", 1, (a, b), boolean=True)
+
+    @staticmethod
+    def stack(xs: Sequence[Any]) -> Expr:
+        xs = [_as_expr(x) for x in xs]
+        if not 2 <= len(xs) <= 4 or any(x.size != 1 for x in xs):
+            raise TypeError("a GLSL vector stacks 2 to 4 floats")
+        return _call(f"vec{len(xs)}", len(xs), *xs)
+
+    @staticmethod
+    def call(name: str, size: int, *args: Any) -> Expr:
+        """A call of a GLSL function that is not traced (a texture lookup a shader defines by hand): its result."""
+        return _call(name, size, *args)
 
 
 GLSL = _Glsl()

@@ -1,4 +1,4 @@
-"""Each look operator's GLSL (generated in diffwash/look) run through moderngl (EGL) against its JAX version.
+"""Each look operator's GLSL (traced from diffwash/look by diffwash._look_glsl) run through moderngl (EGL) against its JAX version.
 
 Float textures in and out, so agreement is to float32 rounding (~1e-5), not to 8-bit levels.
 """
@@ -9,8 +9,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from diffwash import _look_gl as _gl
+from diffwash import _look_glsl as G
 from diffwash import preview
-from diffwash.look import _edges, _gl, _hatching, _look, _mix, _paper, _shadow, _textures
+from diffwash.look import _edges, _hatching, _look, _mix, _paper, _shadow, _textures
 from diffwash.pigments import Pigment
 from diffwash.shading import Params
 
@@ -40,10 +42,11 @@ def test_paper_operators(ctx):
     k = {"look_granulation": 0.7, "look_density": 0.4, "look_turbulence": 0.2, "look_dispersion": 0.1, "look_paper_shading": 0.3}
     frag = (
         "uniform sampler2D src; uniform vec4 pig; layout(location = 0) out vec4 o;\n"
-        + _paper.glsl_paper()
+        + G.look_declarations()
+        + G.glsl_paper()
         + """void main() {
     vec4 s = texelFetch(src, ivec2(gl_FragCoord.xy), 0);
-    o = vec4(look_pigment_factor(s.x, pig), look_unevenness_factor(s.y, s.z), look_paper_shading_apply(vec3(0.5, 0.25, 1.0), s.w).xz);
+    o = vec4(look_pigment_factor(s.x, pig), look_unevenness_factor(s.y, s.z), look_paper_relief(vec3(0.5, 0.25, 1.0), s.w).xz);
 }
 """
     )
@@ -63,7 +66,7 @@ def test_edge_passes_match_local_mean_and_darkening(ctx):
     t[4:18, 3:15] = rng.uniform(0.3, 1.0, (14, 12, 2))  # a wash with edges, and the paper around it
     t = t.astype(np.float32)
     f, R, width, strength = _edges.EDGE_DOWNSAMPLE, _edges.EDGE_RADIUS, 2.5, 1.7
-    passes = _edges.glsl_edge_passes(f, R)
+    passes = G.glsl_edge_passes(f, R)
     weights = list(_edges.gaussian_weights_np(width / f, R)[R:])
     src = np.concatenate([t, np.zeros((H, W, 2), np.float32)], -1)
     lw, lh = -(-W // f), -(-H // f)
@@ -75,11 +78,13 @@ def test_edge_passes_match_local_mean_and_darkening(ctx):
     np.testing.assert_allclose(cols[..., :2], want_low, rtol=1e-5, atol=1e-6)
     frag = (
         "uniform sampler2D thick; layout(location = 0) out vec4 o;\n"
-        + _edges.glsl_edge_darkening(f)
+        + G.look_declarations()
+        + G.glsl_edge_darkening(f)
         + """void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec2 m = look_edge_mean(p);
-    o = vec4(m, look_edge_darken(texelFetch(thick, p, 0).rg, m));
+    vec2 t = texelFetch(thick, p, 0).rg;
+    o = vec4(m, look_edge_darken(t.x, m.x), look_edge_darken(t.y, m.y));
 }
 """
     )
@@ -101,7 +106,8 @@ def test_shadow_lookup(ctx):
     bias, offset = 0.01, 0.02
     frag = (
         "uniform sampler2D pos; uniform sampler2D nrm; layout(location = 0) out vec4 o;\n"
-        + _shadow.glsl_shadow()
+        + G.look_declarations()
+        + G.glsl_shadow()
         + "void main() { ivec2 p = ivec2(gl_FragCoord.xy); o = vec4(look_shadow_factor(texelFetch(pos, p, 0).xyz, texelFetch(nrm, p, 0).xyz)); }\n"
     )
     tex = {
@@ -132,7 +138,7 @@ def test_hatching_ink(ctx):
     tau = rng.uniform(-0.1, 1.1, (H, W))
     frag = (
         "uniform sampler2D pos; uniform sampler2D nrm; layout(location = 0) out vec4 o0;\n"
-        + _hatching.glsl_hatching(levels=3, size=32)
+        + G.glsl_hatching(levels=3, size=32)
         + """void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec4 s = texelFetch(pos, p, 0), n = texelFetch(nrm, p, 0);
@@ -158,7 +164,7 @@ def test_mix_lut_lookup(ctx):
     pts = np.stack([rng.uniform(-0.1, 1.5, (H, W)), rng.uniform(-0.1, 1.0, (H, W)), rng.uniform(-0.1, 1.1, (H, W)), np.zeros((H, W))], -1)
     frag = (
         "uniform sampler2D pts; layout(location = 0) out vec4 o;\n"
-        + _mix.glsl_mix_lut()
+        + G.glsl_mix_lut()
         + "void main() { vec4 s = texelFetch(pts, ivec2(gl_FragCoord.xy), 0); o = vec4(look_mix_colour(s.x, s.y, s.z), 0.0); }\n"
     )
     tex = {"look_mix_lut": _gl.texture3d(ctx, table), "pts": _gl.texture(ctx, pts.astype(np.float32))}
@@ -181,7 +187,7 @@ def test_surface_terms(ctx):
     shadow, pixel = rng.uniform(0, 1, (H, W)), rng.uniform(0.005, 0.2, (H, W))
     frag = (
         "uniform sampler2D th; uniform sampler2D pos; uniform sampler2D nrm; layout(location = 0) out vec4 o;\n"
-        + _look.glsl_surface(tam_levels=3, tam_size=32)
+        + G.glsl_surface(tam_levels=3, tam_size=32)
         + """void main() {
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec4 th_ = texelFetch(th, p, 0), s = texelFetch(pos, p, 0), n = texelFetch(nrm, p, 0);
@@ -220,7 +226,7 @@ def test_final_pass_matches_compose(ctx):
     table = _mix.bake_mix_lut(glaze, params, (32, 32, 8), wash_max=wash_max, unlit_max=unlit_max)
     uni = _look.look_uniforms(look, pigs, height=H)
     f = _edges.edge_downsample(H)
-    passes = _edges.glsl_edge_passes(f)
+    passes = G.glsl_edge_passes(f)
     lw, lh = -(-W // f), -(-H // f)
     low = _gl.run_fullscreen(ctx, passes["downsample"], (lw, lh), textures={"look_source": _gl.texture(ctx, g)})
     low = _gl.run_fullscreen(ctx, passes["blur_rows"], (lw, lh), textures={"look_source": _gl.texture(ctx, low)}, uniforms=uni)
@@ -229,7 +235,7 @@ def test_final_pass_matches_compose(ctx):
     tex = {"look_gbuffer": _gl.texture(ctx, g), "look_screen0": _gl.texture(ctx, s0), "look_screen1": _gl.texture(ctx, s1),
            "look_edge_blurred": _gl.texture(ctx, low, linear=True), "look_mix_lut": _gl.texture3d(ctx, table)}  # fmt: skip
     uni = {**uni, "look_flip_rows": 0, "look_rows": H, "lut_wash_max": wash_max, "lut_unlit_max": unlit_max}
-    out = _gl.run_fullscreen(ctx, _look.glsl_final_pass(height=H), (W, H), textures=tex, uniforms=uni)[..., :3]
+    out = _gl.run_fullscreen(ctx, G.glsl_final_pass(height=H), (W, H), textures=tex, uniforms=uni)[..., :3]
     lut = lambda w, u, m: _mix.lookup_mix_lut(table.astype(np.float64), w, u, m, wash_max=wash_max, unlit_max=unlit_max)  # noqa: E731
     want = _look.compose(g.astype(np.float64), _textures.tile(screen, H, W).astype(jnp.float64), look, pigs, lut)
     np.testing.assert_allclose(out, want, atol=2e-3)  # the 3D LUT's fixed-point filter weights (see test_mix_lut_lookup)
@@ -239,16 +245,16 @@ def test_final_pass_matches_compose(ctx):
 
 def _sources(target):
     """Every look shader for `target`, complete (`#version` first), as (name, kind, source)."""
-    head = _gl.header(target)
-    out = [("fullscreen", "vertex", head + _gl.FULLSCREEN_VERTEX)]
-    for name, body in _edges.glsl_edge_passes().items():
+    head = G.header(target)
+    out = [("fullscreen", "vertex", head + G.FULLSCREEN_VERTEX)]
+    for name, body in G.glsl_edge_passes().items():
         out.append((name, "fragment", head + body))
-    out.append(("final", "fragment", head + _look.glsl_final_pass(height=512)))
-    vert, frag = _shadow.glsl_depth_pass()
+    out.append(("final", "fragment", head + G.glsl_final_pass(height=512)))
+    vert, frag = G.glsl_depth_pass()
     out += [("depth", "vertex", head + vert), ("depth", "fragment", head + frag)]
     surface = (
         "in vec3 P; in vec3 N; in vec2 t; layout(location = 0) out vec4 o;\n"
-        + _look.glsl_surface()
+        + G.glsl_surface()
         + "void main() { o = vec4(look_surface(t, 1.0, look_shadow_factor(P, N), P, N, 0.01), 0.0, 0.0); }\n"
     )
     out.append(("surface", "fragment", head + surface))
@@ -258,9 +264,9 @@ def _sources(target):
 def test_every_shader_compiles_as_glsl330(ctx):
     for name, kind, src in _sources("glsl330"):
         if kind == "fragment":
-            vert = _sources("glsl330")[0][2] if name != "depth" else _gl.header("glsl330") + _shadow.glsl_depth_pass()[0]
+            vert = _sources("glsl330")[0][2] if name != "depth" else G.header("glsl330") + G.glsl_depth_pass()[0]
             if name == "surface":
-                vert = _gl.header("glsl330") + "out vec3 P; out vec3 N; out vec2 t; void main() { P = vec3(0.0); N = vec3(0.0, 0.0, 1.0); t = vec2(0.0); gl_Position = vec4(0.0); }\n"
+                vert = G.header("glsl330") + "out vec3 P; out vec3 N; out vec2 t; void main() { P = vec3(0.0); N = vec3(0.0, 0.0, 1.0); t = vec2(0.0); gl_Position = vec4(0.0); }\n"
             ctx.program(vertex_shader=vert, fragment_shader=src).release()
 
 

@@ -1,7 +1,10 @@
 """The watercolour look (issue 13): paper, edges, unevenness, brush strokes, hatching, shadows, pigment mixes.
 
-The seed's future work, as array operators in JAX with a GLSL twin of each,
-generated here from the same constants (docs/watercolour.md):
+The seed's future work, as array operators (docs/watercolour.md). Each
+effect's per-pixel arithmetic is written once, against the array namespace of
+`diffwash._xp`: JAX runs it, and `diffwash._look_glsl` traces it into the
+look's shaders (the real-time host code, OpenGL included, lives outside this
+package, so importing it needs no OpenGL):
 
 - `_textures`: the screen-space tile (paper height and shading, turbulence and
   dispersion noises), procedural or from an image;
@@ -15,8 +18,9 @@ generated here from the same constants (docs/watercolour.md):
   glaze;
 - `_shadow`: a shadow map and percentage-closer lookups for self-shadowing;
 - `_mix`: pigment mixes across a surface and their 3D LUT;
-- `_look`: the `Look` parameters and the pipeline (`surface_terms`,
-  `image_terms`, `compose`) with its GLSL passes.
+- `_look`: the `Look` parameters, each declared once with its scene key
+  (`leaf_specs`), and the pipeline (`surface_terms`, `pixel_terms`,
+  `image_terms`, `compose`).
 """
 
 import lazy_loader as _lazy

@@ -29,9 +29,11 @@ reduced resolution:
    (low-resolution coordinate `(x + 0.5) / f - 0.5`, clamped to the edge), as
    a GPU's linear filtering does.
 
-Each step is defined at pixel centres: `glsl_edge_passes` gives the three
-passes (`texelFetch`, and `texture` for the final bilinear sample, whose
-weights are multiples of `1 / (2 f)`, exact on any GPU).
+Each step is defined at pixel centres, so that the look's shaders
+(`diffwash._look_glsl.glsl_edge_passes`) give the same numbers with `texelFetch`,
+and `texture` for the final bilinear sample, whose weights are multiples of
+`1 / (2 f)`, exact on any GPU. The darkening itself (`edge_darken`) is written
+once, for JAX and for the shaders alike.
 
 **References:**
 
@@ -53,7 +55,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._gl import float_literal
+from .._xp import namespace, shader_function
 
 __all__ = [
     "EDGE_RADIUS",
@@ -66,9 +68,8 @@ __all__ = [
     "blur",
     "upsample",
     "local_mean",
+    "edge_darken",
     "edge_darkening",
-    "glsl_edge_passes",
-    "glsl_edge_darkening",
 ]
 
 #: Taps on each side of the centre in the separable blur (2 * EDGE_RADIUS + 1 per axis): enough for a
@@ -214,6 +215,15 @@ def local_mean(
     return jax.lax.optimization_barrier(upsample(low, H, W, factor))
 
 
+@shader_function("look_edge_darken", [("t", "float"), ("mean", "float")], "float")
+def edge_darken(t: Float[ArrayLike, "*b C"], mean: Float[ArrayLike, "*b C"], strength: Float[ArrayLike, ""]) -> Float[Array, "*b C"]:
+    r"""The darkening at one pixel, given its local mean: $t + k_e \max(t - \bar t, 0)$ (`strength` $= k_e$)."""
+    xp = namespace(t, mean, strength)
+    t, mean = xp.asfloat(t, mean)
+    d = t - mean
+    return t + strength * xp.where(d > 0, d, 0.0)
+
+
 def edge_darkening(
     thickness: Float[ArrayLike, "H W *C"],
     strength: Float[ArrayLike, ""],
@@ -242,86 +252,6 @@ def edge_darkening(
     """
     t = jnp.asarray(thickness)
     m = local_mean(t, width, factor, radius) if mean is None else jnp.asarray(mean)
-    d = t - m
-    return t + strength * jnp.where(d > 0, d, 0.0)
+    return edge_darken(t, m, strength)
 
 
-# --- GLSL -----------------------------------------------------------------------------------------
-
-
-def glsl_edge_passes(factor: int = EDGE_DOWNSAMPLE, radius: int = EDGE_RADIUS) -> dict[str, str]:
-    """Fragment shader bodies of the three low-resolution passes (no `#version` line).
-
-    - `"downsample"`: `look_source` (full resolution, `.rg` = wash, unlit)
-      -> the mean of each `factor x factor` block;
-    - `"blur_rows"`, `"blur_columns"`: `look_source` -> blurred along x, then y,
-      with `uniform float look_edge_weights[radius + 1]` (weights of offsets
-      0..radius, from `gaussian_weights_np(width / factor)`).
-
-    Each writes `vec4(wash, unlit, 0, 0)` to `look_out` and is drawn as a
-    full-screen triangle at the low resolution.
-    """
-    f = int(factor)
-    down = f"""\
-uniform sampler2D look_source;   // full resolution: .r wash, .g unlit
-layout(location = 0) out vec4 look_out;
-
-void main() {{
-    ivec2 base = ivec2(gl_FragCoord.xy) * {f};
-    ivec2 last = textureSize(look_source, 0) - 1;
-    vec2 acc = vec2(0.0);
-    for (int dy = 0; dy < {f}; ++dy)
-        for (int dx = 0; dx < {f}; ++dx)
-            acc += texelFetch(look_source, min(base + ivec2(dx, dy), last), 0).rg;
-    look_out = vec4(acc * {float_literal(1.0 / (f * f))}, 0.0, 0.0);
-}}
-"""
-
-    def blur_pass(axis: str) -> str:
-        step = "ivec2(k, 0)" if axis == "x" else "ivec2(0, k)"
-        return f"""\
-uniform sampler2D look_source;   // low resolution: .r wash, .g unlit
-uniform float look_edge_weights[{radius + 1}];   // Gaussian weights of offsets 0..{radius}
-layout(location = 0) out vec4 look_out;
-
-void main() {{
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    ivec2 last = textureSize(look_source, 0) - 1;
-    vec2 acc = vec2(0.0);
-    for (int i = 0; i <= {2 * radius}; ++i) {{
-        int k = i - {radius};
-        acc += look_edge_weights[abs(k)] * texelFetch(look_source, clamp(p + {step}, ivec2(0), last), 0).rg;
-    }}
-    look_out = vec4(acc, 0.0, 0.0);
-}}
-"""
-
-    return {"downsample": down, "blur_rows": blur_pass("x"), "blur_columns": blur_pass("y")}
-
-
-def glsl_edge_darkening(factor: int = EDGE_DOWNSAMPLE) -> str:
-    """GLSL of the final step: the bilinear local mean at a full-resolution pixel, and the darkening.
-
-    `look_edge_mean(pixel)` samples `uniform sampler2D look_edge_blurred` (the
-    low-resolution blurred glazes, linear filtering, clamp to edge) at the
-    pixel's centre; `look_edge_darken(t, mean)` is `t + look_edge_darkening *
-    max(t - mean, 0)`.
-    """
-    return f"""\
-// ---- Edge darkening (diffwash/look/_edges.py) ---------------------------------------------------
-uniform sampler2D look_edge_blurred;   // low resolution (1/{int(factor)}): blurred wash and unlit, linear filtering
-uniform float look_edge_darkening;     // k_e
-
-// Gaussian neighbourhood mean of (wash, unlit) at the full-resolution pixel `pixel` (column, row of
-// the blurred texture's own orientation): a bilinear sample at low-resolution coordinate (x + 0.5) / f - 0.5.
-vec2 look_edge_mean(ivec2 pixel) {{
-    vec2 size = vec2(textureSize(look_edge_blurred, 0));
-    vec2 uv = (vec2(pixel) + 0.5) / ({float_literal(float(factor))} * size);
-    return texture(look_edge_blurred, uv).rg;
-}}
-
-vec2 look_edge_darken(vec2 t, vec2 mean) {{
-    vec2 d = t - mean;
-    return t + look_edge_darkening * max(d, vec2(0.0));
-}}
-"""

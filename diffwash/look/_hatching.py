@@ -44,7 +44,6 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._gl import float_literal
 from ._xla import apart
 
 __all__ = [
@@ -62,7 +61,6 @@ __all__ = [
     "hatch_ink_at",
     "PackedMap",
     "pack_tam",
-    "glsl_hatching",
 ]
 
 #: Tones of the map (tone 0, blank paper, is implicit): packed in two RGBA images.
@@ -281,42 +279,6 @@ def tam_atlas(tam: list, tones: int = TONES) -> list[np.ndarray]:
             tiles.append(np.concatenate([tile[n - p :], tile, tile[:p]], axis=0))
         out.append(np.ascontiguousarray(np.concatenate(tiles, axis=0)))
     return out
-
-
-def glsl_hatching(tones: int = TONES, levels: int = TAM_LEVELS, size: int = 256) -> str:
-    """GLSL of `hatch_ink_at`: the ink at tone `tau` from the map's atlas (`tam_atlas`), triplanar, explicit LOD.
-
-    Uniforms: `look_tam` (the atlas, RG, REPEAT, LINEAR_MIPMAP_LINEAR, levels
-    0..levels-1), `look_hatch_scale` (texels of level 0 per object unit).
-    `float look_hatch_ink(P, N, pixel_size, tau)`: three fetches, one per
-    projection, each reading the two tones around `tau`.
-    """
-    pad = atlas_pad(levels)
-    tile = size + 2 * pad
-    return f"""\
-// ---- Hatching: a tonal art map (diffwash/look/_hatching.py, after Praun et al. 2001) ---------------
-uniform sampler2D look_tam;         // tam_atlas: {tones} tiles of {size} + 2 x {pad} rows (level 0), tile k = tones k, k + 1 (RG)
-uniform float look_hatch_scale;     // texels of level 0 per object unit
-
-// The map's ink at tone tau at object-space point P (normal N), for a pixel covering pixel_size object
-// units: triplanar projection, explicit level of detail; tone 0 is blank paper.
-float look_hatch_ink(vec3 P, vec3 N, float pixel_size, float tau) {{
-    float x = pixel_size * look_hatch_scale;
-    float lod = x > 0.0 ? clamp(log2(x), 0.0, {float_literal(levels - 1)}) : 0.0;
-    vec3 a = abs(N) * abs(N);
-    a = a * a;                        // |N|^{_TRIPLANAR_SHARPNESS:g}
-    a /= max(a.x + a.y + a.z, 1e-12);
-    vec3 q = P * (look_hatch_scale / {float_literal(size)});   // texture coordinates: level 0 is {size} texels
-    float t = clamp(tau, 0.0, 1.0) * {float_literal(tones)};
-    float k = clamp(floor(t), 0.0, {float_literal(tones - 1)});
-    float g = t - k;
-    // The rows of tile k: the same fraction of the atlas at every level (the padding halves with the tile).
-    vec3 v = (k * {float_literal(tile)} + {float_literal(pad)} + fract(vec3(q.z, q.x, q.y)) * {float_literal(size)}) / {float_literal(tones * tile)};
-    vec2 s = a.x * textureLod(look_tam, vec2(q.y, v.x), lod).rg + a.y * textureLod(look_tam, vec2(q.z, v.y), lod).rg
-           + a.z * textureLod(look_tam, vec2(q.x, v.z), lod).rg;
-    return (1.0 - g) * s.x + g * s.y;
-}}
-"""
 
 
 def triplanar_uv(P: Float[ArrayLike, "*b 3"], scale: float, size: int = 256) -> tuple[Array, Array, Array]:

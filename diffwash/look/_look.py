@@ -29,13 +29,21 @@ paper (`_mix.glaze_mix`, or its 3D LUT `_mix.lookup_mix_lut`; with no mix map,
 Every continuous parameter is a leaf of `Look` (differentiable with
 `jax.grad`, fittable with optimistix); zero strengths and widths give back
 the plain model exactly (`OFF`; a zero edge width alone keeps the blur grid's
-own narrow edge). `glsl_final_pass` writes steps 3-5 as one fragment
-shader over the G-buffer, `glsl_surface` step 1 for the geometry pass;
-`look_uniforms` gives their uniforms from the same Python values.
+own narrow edge).
+
+**Written once.** Each effect's per-pixel arithmetic (`surface_terms`,
+`pixel_terms` and the functions they call) is written against the array
+namespace of `diffwash._xp`: the renderer runs it on JAX arrays, and
+`diffwash._look_glsl` traces the very same functions into the look's shaders,
+as `diffwash._glsl` does for the model. Each `Look` leaf is declared once,
+with its scene key, default, bound and documentation (`leaf_specs`): the scene
+reader (`diffwash._watercolour`), the shaders' uniforms (`look_<leaf>`) and
+`look_uniforms` all read that declaration.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
@@ -44,46 +52,61 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._edges import EDGE_RADIUS, edge_darkening, edge_downsample, gaussian_weights_np, glsl_edge_darkening
-from ._hatching import TAM_LEVELS, glsl_hatching, hatch_ink
-from ._mix import glsl_mix_lut
-from ._paper import PigmentLook, glsl_paper, paper_shading, pigment_factor, unevenness_factor
-from ._shadow import DEFAULT_BIAS, glsl_shadow
-from ._strokes import glsl_strokes, stroke_factor
+from .._xp import Expr, namespace, shader_function
+from ._edges import EDGE_RADIUS, edge_darken, edge_downsample, gaussian_weights_np, local_mean
+from ._hatching import hatch_ink
+from ._paper import PigmentLook, paper_shading, pigment_factor, unevenness_factor
+from ._shadow import DEFAULT_BIAS
+from ._strokes import stroke_factor
 
 __all__ = [
     "Look",
+    "LeafSpec",
+    "leaf_specs",
     "DEFAULT_LOOK",
     "OFF",
     "Pigments",
     "surface_terms",
+    "pixel_terms",
     "image_terms",
     "compose",
     "look_uniforms",
-    "glsl_surface",
-    "glsl_final_pass",
 ]
 
-#: The look's defaults: what `"watercolour": {}` turns on (docs/watercolour.md gives the reasons).
-DEFAULT_LOOK: dict[str, float] = {
-    "edge_darkening": 3.0,
-    "edge_width": 3.0,
-    "granulation": 0.6,
-    "density": 0.25,
-    "turbulence": 0.18,
-    "dispersion": 0.08,
-    "paper_shading": 0.08,
-    "strokes": 0.12,
-    "shadow": 0.7,
-    "shadow_bias": DEFAULT_BIAS,
-    "hatching": 0.0,
-}
+
+class LeafSpec(NamedTuple):
+    """How a `Look` leaf appears in a scene file and a shader: one declaration per leaf (`leaf_specs`).
+
+    **Fields:** `leaf` (the `Look` field), `effect` and `key` (the scene's
+    `watercolour.<effect>.<key>`), `default` (the `Look`'s default: 0 for an
+    effect that is off unless asked for), `on` (the value when the scene turns
+    the effect on without giving the key), `at_most` (an upper bound, or
+    None), `fit` (whether fit-image may fit it: False for a step, whose
+    gradient is 0; such a leaf keeps its default when its effect is off),
+    `doc` (what it is, as the shaders' uniform declarations say it). The
+    shaders' uniform is `look_<leaf>`.
+    """
+
+    leaf: str
+    effect: str
+    key: str
+    default: float
+    on: float
+    at_most: float | None
+    fit: bool
+    doc: str
+
+
+def _leaf(effect: str, key: str, default: float, doc: str, *, on: float | None = None, at_most: float | None = None, fit: bool = True) -> Any:
+    """A `Look` field declared with its scene key, default, bound and documentation (read by `leaf_specs`)."""
+    meta = {"effect": effect, "key": key, "on": default if on is None else on, "at_most": at_most, "fit": fit, "doc": doc}
+    return eqx.field(default=default, metadata={"look": meta})
 
 
 class Look(eqx.Module):
     """The look's continuous parameters, as a pytree (every field differentiable).
 
-    **Fields:**
+    **Fields** (each declared with its scene key, `leaf_specs`):
 
     - `edge_darkening`: pigment gathered at a glaze's edge, $k_e$ (0: off).
     - `edge_width`: the edge's width, the blur's sigma in pixels (at 0 the
@@ -101,18 +124,28 @@ class Look(eqx.Module):
       strokes only).
     """
 
-    edge_darkening: Any = DEFAULT_LOOK["edge_darkening"]
-    edge_width: Any = DEFAULT_LOOK["edge_width"]
-    granulation: Any = DEFAULT_LOOK["granulation"]
-    density: Any = DEFAULT_LOOK["density"]
-    turbulence: Any = DEFAULT_LOOK["turbulence"]
-    dispersion: Any = DEFAULT_LOOK["dispersion"]
-    paper_shading: Any = DEFAULT_LOOK["paper_shading"]
-    strokes: Any = DEFAULT_LOOK["strokes"]
-    shadow: Any = DEFAULT_LOOK["shadow"]
-    shadow_bias: Any = DEFAULT_LOOK["shadow_bias"]
-    hatching: Any = DEFAULT_LOOK["hatching"]
+    edge_darkening: Any = _leaf("edges", "darkening", 3.0, "k_e: pigment gathered at a glaze's edge")
+    edge_width: Any = _leaf("edges", "width", 3.0, "the edge's width: the blur's sigma in pixels")
+    granulation: Any = _leaf("paper", "granulation", 0.6, "k_g: 0 even, 1 Curtis et al.'s equilibrium", at_most=1.0)
+    density: Any = _leaf("paper", "density", 0.25, "k_rho: how much a pigment's density scales its thickness")
+    turbulence: Any = _leaf("unevenness", "turbulence", 0.18, "amplitude of the low-frequency turbulent flow")
+    dispersion: Any = _leaf("unevenness", "dispersion", 0.08, "amplitude of the high-frequency pigment dispersion")
+    paper_shading: Any = _leaf("paper", "shading", 0.08, "strength of the paper's relief shading")
+    strokes: Any = _leaf("strokes", "amplitude", 0.12, "amplitude of the stroke layer")
+    shadow: Any = _leaf("shadow", "strength", 0.7, "how far the unlit glaze thickens in the object's own shadow", at_most=1.0)
+    shadow_bias: Any = _leaf("shadow", "bias", DEFAULT_BIAS, "the shadow map's depth bias", fit=False)
+    hatching: Any = _leaf("hatching", "amount", 0.0, "how far the unlit glaze becomes hatching", on=0.5, at_most=1.0)
 
+
+def leaf_specs() -> dict[str, LeafSpec]:
+    """Every `Look` leaf's declaration (`LeafSpec`), in the `Look`'s field order."""
+    return {f.name: LeafSpec(f.name, **{k: f.metadata["look"][k] for k in ("effect", "key")}, default=f.default,
+                             **{k: f.metadata["look"][k] for k in ("on", "at_most", "fit", "doc")})
+            for f in dataclasses.fields(Look)}  # fmt: skip
+
+
+#: The look's defaults: what `"watercolour": {}` turns on (docs/watercolour.md gives the reasons).
+DEFAULT_LOOK: dict[str, float] = {name: spec.default for name, spec in leaf_specs().items()}
 
 #: Every effect off: `compose` then gives the plain model's image.
 OFF = Look(**{k: 0.0 for k in DEFAULT_LOOK})
@@ -152,7 +185,8 @@ def surface_terms(
     art map's ink at tone `tau` (`hatch`: the map's samples of every tone at
     the point, `_hatching.hatch_samples`; or a function `tau -> ink`, e.g.
     `_hatching.hatch_ink_at`, which reads only the two tones it needs). Each
-    term is skipped when its input is None; the wash is unchanged.
+    term is skipped when its input is None; the wash is unchanged. Written
+    against `diffwash._xp`: the look's geometry shader is this function, traced.
 
     **Arguments:**
 
@@ -161,12 +195,13 @@ def surface_terms(
     - `unlit_max`: the model's largest unlit thickness (`params.k_unlit`).
     - `shadow`, `hatch`: see above.
     """
-    w, u = jnp.asarray(wash), jnp.asarray(unlit)
+    xp = namespace(wash, unlit, shadow, unlit_max)
+    w, u = xp.asfloat(wash, unlit)
     if shadow is not None:
-        u = u + look.shadow * jnp.asarray(shadow) * (unlit_max - u)
+        u = u + look.shadow * shadow * (unlit_max - u)
     if hatch is not None:
         ok = unlit_max > 0
-        tau = jnp.where(ok, u / jnp.where(ok, unlit_max, 1.0), 0.0)
+        tau = xp.where(ok, u / xp.where(ok, unlit_max, 1.0), 0.0)
         ink = hatch(tau) if callable(hatch) else hatch_ink(hatch, tau)
         u = u + look.hatching * (unlit_max * ink - u)
     return w, u
@@ -178,9 +213,41 @@ def _lerp(a: Array, b: Array, t: Array) -> Array:
 
 def _pigment_factor(h: Array, a: PigmentLook, b: PigmentLook, m: Array, look: Look) -> Array:
     fa = pigment_factor(h, a, look.granulation, look.density)
-    if b == a:  # no mix map: one pigment (a static check, no work for the second)
+    if b is a or (not isinstance(b, Expr) and b == a):  # no mix map: one pigment (a static check, no work for the second)
         return fa
     return _lerp(fa, pigment_factor(h, b, look.granulation, look.density), m)
+
+
+@shader_function(
+    "look_pixel_terms",
+    [("wash", "float"), ("unlit", "float"), ("mean_wash", "float"), ("mean_unlit", "float"), ("mix_proportion", "float"),
+     ("stroke", "float"), ("paper", "float"), ("turbulence_wash", "float"), ("dispersion_wash", "float"),
+     ("turbulence_unlit", "float"), ("dispersion_unlit", "float")],
+    [("wash_out", "float"), ("unlit_out", "float")],
+)  # fmt: skip
+def pixel_terms(
+    wash, unlit, mean_wash, mean_unlit, mix_proportion, stroke, paper, turbulence_wash, dispersion_wash, turbulence_unlit, dispersion_unlit,
+    look: Look, pigments: Pigments,
+) -> tuple[Float[Array, "*p"], Float[Array, "*p"]]:  # fmt: skip
+    r"""The image terms at pixels whose glazes' local mean is known: what the final pass does per pixel.
+
+    $$ t' = \mathrm{edge}(t, \bar t)\ \exp(k_\text{strokes} b)\ \mathrm{lerp}(F_a(h), F_b(h), m)\ \exp(k_t n_t + k_d n_d) $$
+
+    per glaze (`image_terms` explains the terms). Every argument but `look` and
+    `pigments` is a per-pixel value (any matching shapes): the G-buffer's
+    thicknesses, their local mean (`_edges.local_mean`), mix and stroke value,
+    and the screen tile's paper height and the four noises.
+
+    **Returns:**
+
+    `(wash, unlit)` to glaze.
+    """
+    t_w = edge_darken(wash, mean_wash, look.edge_darkening)
+    t_u = edge_darken(unlit, mean_unlit, look.edge_darkening)
+    b = stroke_factor(stroke, look.strokes)
+    w = t_w * b * _pigment_factor(paper, pigments.wash, pigments.wash_b, mix_proportion, look) * unevenness_factor(turbulence_wash, dispersion_wash, look.turbulence, look.dispersion)
+    u = t_u * b * _pigment_factor(paper, pigments.unlit, pigments.unlit_b, mix_proportion, look) * unevenness_factor(turbulence_unlit, dispersion_unlit, look.turbulence, look.dispersion)
+    return w, u
 
 
 def image_terms(
@@ -192,6 +259,8 @@ def image_terms(
     mean: Float[ArrayLike, "*p 2"] | None = None,
 ) -> Float[Array, "*p 2"]:
     r"""Edge darkening, then strokes, granulation, staining, density and unevenness, on the G-buffer's thicknesses.
+
+    The local mean over the image (the edge blur), then `pixel_terms` at each pixel.
 
     $$ t' = \mathrm{edge}(t)\ \exp(k_\text{strokes} b)\ \mathrm{lerp}(F_a(h), F_b(h), m)\ \exp(k_t n_t + k_d n_d) $$
 
@@ -217,12 +286,10 @@ def image_terms(
     """
     g = jnp.asarray(gbuffer)
     s = jnp.asarray(screen)
-    factor = edge_downsample(g.shape[0]) if mean is None else 1
-    t = edge_darkening(g[..., :2], look.edge_darkening, look.edge_width, mean=mean, factor=factor)
-    h, m = s[..., 0], g[..., 2]
-    b = stroke_factor(g[..., 3], look.strokes)
-    w = t[..., 0] * b * _pigment_factor(h, pigments.wash, pigments.wash_b, m, look) * unevenness_factor(s[..., 2], s[..., 3], look.turbulence, look.dispersion)
-    u = t[..., 1] * b * _pigment_factor(h, pigments.unlit, pigments.unlit_b, m, look) * unevenness_factor(s[..., 4], s[..., 5], look.turbulence, look.dispersion)
+    if mean is None:
+        mean = local_mean(g[..., :2], look.edge_width, edge_downsample(g.shape[0]))
+    mean = jnp.asarray(mean)
+    w, u = pixel_terms(g[..., 0], g[..., 1], mean[..., 0], mean[..., 1], g[..., 2], g[..., 3], s[..., 0], s[..., 2], s[..., 3], s[..., 4], s[..., 5], look, pigments)
     return jnp.stack([w, u], axis=-1)
 
 
@@ -245,130 +312,22 @@ def compose(
 
 
 def look_uniforms(look: Look, pigments: Pigments, *, height: int, radius: int = EDGE_RADIUS) -> dict[str, Any]:
-    """The uniforms of `glsl_surface` and `glsl_final_pass` (and the edge passes) for a `Look`.
+    """The uniforms of the look's shaders (`diffwash._look_glsl`) for a `Look`.
 
-    The same numbers the JAX operators use: the strengths as floats, the
+    The same numbers the JAX operators use: each leaf as `look_<leaf>`, the
     pigments' `vec4`s, and `look_edge_weights` (`gaussian_weights_np(width /
     f, radius)`, offsets 0..radius, `f = edge_downsample(height)` for an
     image `height` pixels tall).
     """
     factor = edge_downsample(height)
     f = lambda x: float(np.asarray(x))  # noqa: E731
-    out: dict[str, Any] = {
-        "look_edge_darkening": f(look.edge_darkening),
-        "look_granulation": f(look.granulation),
-        "look_density": f(look.density),
-        "look_turbulence": f(look.turbulence),
-        "look_dispersion": f(look.dispersion),
-        "look_paper_shading": f(look.paper_shading),
-        "look_strokes": f(look.strokes),
-        "look_shadow": f(look.shadow),
-        "look_shadow_bias": f(look.shadow_bias),
-        "look_hatching": f(look.hatching),
+    out: dict[str, Any] = {f"look_{name}": f(getattr(look, name)) for name in leaf_specs()}
+    out.update({
         "look_wash_pigment": pigments.wash.uniform(),
         "look_wash_pigment_b": pigments.wash_b.uniform(),
         "look_unlit_pigment": pigments.unlit.uniform(),
         "look_unlit_pigment_b": pigments.unlit_b.uniform(),
-    }
+    })  # fmt: skip
     weights = gaussian_weights_np(f(look.edge_width) / factor, radius)
     out["look_edge_weights"] = [float(v) for v in weights[radius:]]
     return out
-
-
-def glsl_surface(*, tam_levels: int = TAM_LEVELS, tam_size: int = 256) -> str:
-    """GLSL of `surface_terms` for a geometry pass, with the shadow and hatching functions it calls
-    (`tam_levels`, `tam_size`: the tonal art map's levels and level-0 side, as `glsl_hatching`).
-
-    `vec2 look_surface(vec2 t, float unlit_max, float shadow, vec3 P, vec3 N, float pixel_size)` (the
-    point, its normal and footprint for the hatching, read only where `LOOK_HATCHING` is 1, the default);
-    the pass writes `vec4(look_surface(...), mix, stroke)` to the G-buffer.
-    """
-    return (
-        glsl_shadow()
-        + "\n"
-        + glsl_hatching(levels=tam_levels, size=tam_size)
-        + """
-// ---- Surface terms (diffwash/look/_look.py: surface_terms) -----------------------------------------
-uniform float look_shadow;     // how far the unlit glaze thickens in the object's own shadow
-uniform float look_hatching;   // how far the unlit glaze becomes hatching
-
-#ifndef LOOK_HATCHING
-#define LOOK_HATCHING 1
-#endif
-vec2 look_surface(vec2 t, float unlit_max, float shadow, vec3 P, vec3 N, float pixel_size) {
-    float u = t.y + look_shadow * shadow * (unlit_max - t.y);
-#if LOOK_HATCHING
-    float tau = unlit_max > 0.0 ? u / unlit_max : 0.0;
-    u = u + look_hatching * (unlit_max * look_hatch_ink(P, N, pixel_size, tau) - u);
-#endif
-    return vec2(t.x, u);
-}
-"""
-    )
-
-
-def glsl_final_pass(*, height: int, colour: str = "mix") -> str:
-    """The final full-screen pass (no `#version` line): G-buffer -> image terms -> glaze -> paper shading.
-
-    Reads `look_gbuffer` (RGBA float: wash, unlit, mix, stroke; `texelFetch`
-    at the fragment), `look_screen0` / `look_screen1` (the screen tile,
-    `ScreenTextures.rgba()`), `look_edge_blurred` (`glsl_edge_passes`' output).
-    `uniform int look_flip_rows` says whether the G-buffer's rows run bottom
-    to top (an OpenGL render: the screen tile's row is then `look_rows - 1 -
-    y`); `look_rows` is the image height. `colour="mix"` glazes with the 3D
-    LUT (`glsl_mix_lut`); the result is linear RGB unless `LOOK_OUTPUT_SRGB`
-    is defined to 1. `height`: the image's, which sets the edge blur's
-    reduction (`edge_downsample`).
-    """
-    factor = edge_downsample(height)
-    if colour != "mix":
-        raise ValueError("the final pass glazes with the 3D mix LUT (a 2D LUT is the mix LUT with one slice pair)")
-    return (
-        """\
-#ifndef LOOK_OUTPUT_SRGB
-#define LOOK_OUTPUT_SRGB 0
-#endif
-uniform sampler2D look_gbuffer;    // wash, unlit, mix, stroke (full resolution)
-uniform sampler2D look_screen0;    // paper height, paper shade, turbulence (wash), dispersion (wash)
-uniform sampler2D look_screen1;    // turbulence (unlit), dispersion (unlit)
-uniform int look_flip_rows;        // 1: the G-buffer's row 0 is the image's bottom row
-uniform int look_rows;             // image height in pixels
-uniform vec4 look_wash_pigment;    // PigmentLook.uniform(): gamma, omega, mean deposit, log(rho / ref)
-uniform vec4 look_wash_pigment_b;
-uniform vec4 look_unlit_pigment;
-uniform vec4 look_unlit_pigment_b;
-layout(location = 0) out vec4 look_colour;
-"""
-        + glsl_paper()
-        + glsl_strokes()
-        + glsl_edge_darkening(factor)
-        + glsl_mix_lut()
-        + """
-vec3 look_srgb_encode(vec3 c) {
-    c = clamp(c, 0.0, 1.0);
-    return mix(1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, 12.92 * c, lessThanEqual(c, vec3(0.0031308)));
-}
-
-void main() {
-    ivec2 frag = ivec2(gl_FragCoord.xy);
-    vec4 g = texelFetch(look_gbuffer, frag, 0);
-    int row = look_flip_rows != 0 ? look_rows - 1 - frag.y : frag.y;
-    ivec2 tile = textureSize(look_screen0, 0);
-    ivec2 tc = ivec2(frag.x % tile.x, row % tile.y);
-    vec4 s0 = texelFetch(look_screen0, tc, 0);
-    vec4 s1 = texelFetch(look_screen1, tc, 0);
-    vec2 t = look_edge_darken(g.rg, look_edge_mean(frag));
-    float m = g.b;
-    float fw = mix(look_pigment_factor(s0.x, look_wash_pigment), look_pigment_factor(s0.x, look_wash_pigment_b), m);
-    float fu = mix(look_pigment_factor(s0.x, look_unlit_pigment), look_pigment_factor(s0.x, look_unlit_pigment_b), m);
-    float b = look_stroke_factor(g.a);
-    float w = t.x * b * fw * look_unevenness_factor(s0.z, s0.w);
-    float u = t.y * b * fu * look_unevenness_factor(s1.x, s1.y);
-    vec3 c = look_paper_shading_apply(look_mix_colour(w, u, m), s0.y);
-#if LOOK_OUTPUT_SRGB
-    c = look_srgb_encode(c);
-#endif
-    look_colour = vec4(c, 1.0);
-}
-"""
-    )

@@ -10,13 +10,13 @@ scattering are the concentration-weighted means of its pigments':
 $$ K(m) = (1 - m) K_a + m K_b, \qquad S(m) = (1 - m) S_a + m S_b, $$
 
 for the wash (`wash` -> `wash_b`) and the unlit glaze (`unlit` -> `unlit_b`)
-alike; `glaze_mix` composites them as `diffwash.shading.glaze` does.
+alike; `glaze_mix` is `diffwash.shading.glaze` of the mixtures.
 
 **The real-time form** is a 3D LUT over (wash, unlit, mix): `bake_mix_lut`
 evaluates any `glaze(params, wash, unlit, mix)` on the grid (a pure function,
 as `diffwash.lut.bake` is for the 2D table), `lookup_mix_lut` is the
 trilinear lookup a `sampler3D` does with the same texel-centre convention as
-the 2D LUT (docs/realtime.md), and `mix_lut_error` measures what a size
+the 2D LUT (docs/realtime.md; the shaders' `sampler3D` returns the same), and `mix_lut_error` measures what a size
 costs against the exact glaze. docs/watercolour.md has the table; at
 64 x 64 x 16 the error is below an 8-bit level. A mix between two *colours*
 (two 2D LUTs blended) is not the same (`blended_pair_error`): mixing pigments
@@ -33,6 +33,7 @@ is not mixing their colours.
 from __future__ import annotations
 
 from collections.abc import Callable
+import dataclasses
 from typing import Any
 
 import jax
@@ -40,9 +41,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .. import km
+from .. import shading
 from .._errors import DiffwashError
 from ..colorimetry import to_display as srgb_encode
+from ..pigments import Pigment
 
 __all__ = [
     "mix_coefficients",
@@ -53,7 +55,6 @@ __all__ = [
     "blended_pair_error",
     "check_mix_map",
     "mix_along_axis",
-    "glsl_mix_lut",
 ]
 
 
@@ -90,10 +91,8 @@ def glaze_mix(
     """
     Kw, Sw = mix_coefficients(params.wash, wash_b, mix)
     Ku, Su = mix_coefficients(params.unlit, unlit_b, mix)
-    Rw, Tw = km.layer(Kw, Sw, jnp.asarray(wash)[..., None])
-    Ru, Tu = km.layer(Ku, Su, jnp.asarray(unlit)[..., None])
-    R, T = km.composite(Ru, Tu, Rw, Tw)
-    return km.over(R, T, jnp.asarray(params.paper))
+    mixed = dataclasses.replace(params, wash=Pigment(K=Kw, S=Sw), unlit=Pigment(K=Ku, S=Su), paper=jnp.asarray(params.paper))
+    return shading.glaze(mixed, wash, unlit)  # the model's own glaze, of the mixtures
 
 
 def _grid(size: tuple[int, int, int], wash_max: float, unlit_max: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -162,7 +161,7 @@ def lookup_mix_lut(
     wash_max: float,
     unlit_max: float,
 ) -> Float[Array, "*b C"]:
-    """Trilinear lookup at texel centres, clamped to the table: what `glsl_mix_lut`'s `sampler3D` returns.
+    """Trilinear lookup at texel centres, clamped to the table: what the look's shaders' `sampler3D` returns.
 
     Differentiable in `wash`, `unlit`, `mix` (piecewise linear) and in `table`.
     """
@@ -260,27 +259,3 @@ def mix_along_axis(vertices: np.ndarray, axis: Any, *, softness: float = 0.25) -
     mid, half = (lo + hi) / 2, max(softness, 1e-6) * (hi - lo) / 2
     x = np.clip((t - mid) / (2 * half) + 0.5, 0, 1)
     return (x * x * (3 - 2 * x)).astype(np.float32)
-
-
-def glsl_mix_lut() -> str:
-    """GLSL of `lookup_mix_lut`: a `sampler3D` (linear filtering, clamp to edge) at texel centres.
-
-    Uniforms `look_mix_lut` (texture width = wash, height = unlit, depth =
-    mix; slice 0 = mix 0, row 0 = unlit 0 uploaded first), `lut_wash_max`,
-    `lut_unlit_max` (as for the 2D LUT).
-    """
-    return """\
-// ---- More than one shade: the 3D LUT over (wash, unlit, mix) (diffwash/look/_mix.py) ---------------
-uniform sampler3D look_mix_lut;   // linear colour; x = wash, y = unlit, z = mix
-uniform float lut_wash_max;
-uniform float lut_unlit_max;
-
-vec3 look_mix_colour(float wash, float unlit, float mix_) {
-    vec3 size = vec3(textureSize(look_mix_lut, 0));
-    vec3 t = vec3(lut_wash_max > 0.0 ? wash / lut_wash_max : 0.0,
-                  lut_unlit_max > 0.0 ? unlit / lut_unlit_max : 0.0,
-                  mix_);
-    vec3 uvw = (clamp(t, 0.0, 1.0) * (size - 1.0) + 0.5) / size;
-    return texture(look_mix_lut, uvw).rgb;
-}
-"""

@@ -43,7 +43,9 @@ paper's relief shading (`paper_shade`), $k_s$ the `paper_shading` strength:
 the paper's tooth shows through the pigment and on the bare paper alike, as on
 a scan of a painting.
 
-Each function has a GLSL twin, generated here from the same constants.
+Each per-pixel function is written once against the array namespace of
+`diffwash._xp`: the renderer runs it on JAX arrays, and `diffwash._look_glsl`
+traces it into the look's shaders.
 
 **References:**
 
@@ -62,11 +64,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from ._gl import float_literal
+from .._xp import namespace, shader_function
 
 __all__ = [
     "DENSITY_REFERENCE",
@@ -77,7 +78,6 @@ __all__ = [
     "pigment_factor",
     "unevenness_factor",
     "paper_shading",
-    "glsl_paper",
 ]
 
 #: The density the look takes as neutral: the geometric mean of the seed table's 12 pigments' rho (0.030).
@@ -128,6 +128,7 @@ def pigment_look(pigment, paper: np.ndarray) -> PigmentLook:
     return PigmentLook(gamma, omega, mean, math.log(rho / DENSITY_REFERENCE))
 
 
+@shader_function("look_deposit", [("h", "float"), ("gamma", "float"), ("omega", "float")], "float")
 def deposit(h: Float[ArrayLike, "*b"], gamma: float, omega: float) -> Float[Array, "*b"]:
     r"""The fraction of a pigment lying on paper of height `h` at equilibrium (Curtis et al. 1997).
 
@@ -135,12 +136,13 @@ def deposit(h: Float[ArrayLike, "*b"], gamma: float, omega: float) -> Float[Arra
     `h` in [0, 1], `gamma` in [0, 1], `omega > 0`. The denominator is at least
     `min(1, 1/omega) > 0`.
     """
-    h = jnp.asarray(h)
+    (h,) = namespace(h, gamma, omega).asfloat(h)
     a = 1 - gamma * h
     b = 1 - gamma * (1 - h)
     return a / (a + b / omega)
 
 
+@shader_function("look_pigment_factor", [("h", "float"), ("pigment", "vec4")], "float")
 def pigment_factor(
     h: Float[ArrayLike, "*b"], pigment: PigmentLook, granulation: Float[ArrayLike, ""], density: Float[ArrayLike, ""]
 ) -> Float[Array, "*b"]:
@@ -151,7 +153,8 @@ def pigment_factor(
     **Arguments:**
 
     - `h`: paper height at each pixel, in [0, 1].
-    - `pigment`: the pigment's `PigmentLook`.
+    - `pigment`: the pigment's `PigmentLook` (in a shader, its `vec4`:
+      `PigmentLook.uniform()`, indexed in the same order).
     - `granulation`: $k_g$, 0 (even) to 1 (Curtis's equilibrium); differentiable.
     - `density`: $k_\rho$, 0 (off) to 1; differentiable.
 
@@ -159,11 +162,14 @@ def pigment_factor(
 
     The factor, `>= 0`, shape of `h`.
     """
-    g = 1 + granulation * (deposit(h, pigment.granularity, pigment.staining) / pigment.deposit_mean - 1)
-    g = jnp.where(g > 0, g, 0.0)
-    return g * jnp.exp(density * pigment.log_density)
+    xp = namespace(h, pigment, granulation, density)
+    granularity, staining, deposit_mean, log_density = (pigment[i] for i in range(4))
+    g = 1 + granulation * (deposit(h, granularity, staining) / deposit_mean - 1)
+    g = xp.where(g > 0, g, 0.0)
+    return g * xp.exp(density * log_density)
 
 
+@shader_function("look_unevenness_factor", [("turbulence_noise", "float"), ("dispersion_noise", "float")], "float")
 def unevenness_factor(
     turbulence_noise: Float[ArrayLike, "*b"],
     dispersion_noise: Float[ArrayLike, "*b"],
@@ -176,9 +182,12 @@ def unevenness_factor(
     at each pixel; `turbulence`, `dispersion`: their amplitudes (0: off),
     differentiable.
     """
-    return jnp.exp(turbulence * jnp.asarray(turbulence_noise) + dispersion * jnp.asarray(dispersion_noise))
+    xp = namespace(turbulence_noise, dispersion_noise, turbulence, dispersion)
+    tn, dn = xp.asfloat(turbulence_noise, dispersion_noise)
+    return xp.exp(turbulence * tn + dispersion * dn)
 
 
+@shader_function("look_paper_relief", [("rgb", "vec3"), ("shade", "float")], "vec3")
 def paper_shading(
     rgb: Float[ArrayLike, "*b 3"], shade: Float[ArrayLike, "*b"], strength: Float[ArrayLike, ""]
 ) -> Float[Array, "*b 3"]:
@@ -187,48 +196,8 @@ def paper_shading(
     `shade`: the paper's zero-mean shading at each pixel (`ScreenTextures`
     channel `shade`); `strength`: $k_s$ (0: off), differentiable.
     """
-    f = 1 + strength * jnp.asarray(shade)
-    f = jnp.where(f > 0, f, 0.0)
-    return jnp.asarray(rgb) * f[..., None]
-
-
-def glsl_paper() -> str:
-    """GLSL of `deposit`, `pigment_factor`, `unevenness_factor` and `paper_shading` (the same constants).
-
-    Uniforms: `look_granulation`, `look_density`, `look_turbulence`,
-    `look_dispersion`, `look_paper_shading` (floats, named after the `Look`
-    fields). A pigment is a `vec4` (`PigmentLook.uniform()`).
-    """
-    return f"""\
-// ---- Pigment on paper (diffwash/look/_paper.py) ------------------------------------------------
-uniform float look_granulation;    // k_g: 0 even, 1 Curtis et al.'s equilibrium
-uniform float look_density;        // k_rho: how much rho / {float_literal(DENSITY_REFERENCE)} scales the thickness
-uniform float look_turbulence;     // amplitude of the low-frequency turbulent flow
-uniform float look_dispersion;     // amplitude of the high-frequency pigment dispersion
-uniform float look_paper_shading;  // strength of the paper's relief shading
-
-// Fraction of a pigment on paper of height h at equilibrium (Curtis et al. 1997, sec. 4.5).
-float look_deposit(float h, float gamma, float omega) {{
-    float a = 1.0 - gamma * h;
-    float b = 1.0 - gamma * (1.0 - h);
-    return a / (a + b / omega);
-}}
-
-// Granulation, staining and density of one pigment: pigment = (gamma, omega, mean deposit, log(rho/ref)).
-float look_pigment_factor(float h, vec4 pigment) {{
-    float g = 1.0 + look_granulation * (look_deposit(h, pigment.x, pigment.y) / pigment.z - 1.0);
-    g = g > 0.0 ? g : 0.0;
-    return g * exp(look_density * pigment.w);
-}}
-
-// Turbulent flow and pigment dispersion (Bousseau et al. 2006) as a thickness factor.
-float look_unevenness_factor(float turbulence_noise, float dispersion_noise) {{
-    return exp(look_turbulence * turbulence_noise + look_dispersion * dispersion_noise);
-}}
-
-// The paper's relief over the final colour.
-vec3 look_paper_shading_apply(vec3 rgb, float shade) {{
-    float f = 1.0 + look_paper_shading * shade;
-    return rgb * (f > 0.0 ? f : 0.0);
-}}
-"""
+    xp = namespace(rgb, shade, strength)
+    rgb, shade = xp.asfloat(rgb, shade)
+    f = 1 + strength * shade
+    f = xp.where(f > 0, f, 0.0)
+    return rgb * xp.expand(f)

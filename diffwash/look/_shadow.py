@@ -13,7 +13,7 @@ The pieces, each a pure function of arrays:
    OpenGL's conventions (so a shader's light-space depth pass uses the very
    same matrix). Differentiable in the light direction.
 2. The depth pass. A GPU rasterizes the mesh with that matrix into a depth
-   texture (`glsl_depth_pass`). diffwash's own rasterizer decides visibility
+   texture (`diffwash._look_glsl.glsl_depth_pass`). diffwash's own rasterizer decides visibility
    by the clip-space `w`, which an orthographic projection sets to 1
    everywhere, so `light_clip` hands it positions with the same `x/w` and
    `y/w` (so the same coverage) and `w = 2 + z_ndc` (so the same nearest
@@ -52,8 +52,6 @@ __all__ = [
     "light_clip",
     "light_depth",
     "shadow",
-    "glsl_shadow",
-    "glsl_depth_pass",
     "DEFAULT_BIAS",
     "SHADOW_MAP_SIZE",
     "SHADOW_TAPS",
@@ -253,76 +251,3 @@ def shadow(
         return 1 - lit
 
     return apart(reads, depth, d, cx, cy, wx, wy)
-
-
-def glsl_shadow(taps: int = SHADOW_TAPS) -> str:
-    """GLSL of `shadow` (`taps^2` `texelFetch`es of a float depth texture; the same filter and comparison).
-
-    Uniforms: `look_shadow_map` (the depth map as OpenGL renders it: row 0 at
-    `y_ndc = -1`), `look_light_view_projection`, `look_shadow_bias`,
-    `look_shadow_normal_offset`.
-    """
-    if taps not in (2, 3):
-        raise ValueError(f"taps must be 2 or 3, got {taps}")
-    if taps == 2:
-        filt = """\
-    vec2 q = (ndc.xy + 1.0) * 0.5 * vec2(size) - 0.5;   // one bilinear tap
-    vec2 k0 = floor(q);
-    vec2 g = q - k0;
-    float wx[2] = float[2](1.0 - g.x, g.x);
-    float wy[2] = float[2](1.0 - g.y, g.y);"""
-    else:
-        filt = """\
-    vec2 q = (ndc.xy + 1.0) * 0.5 * vec2(size) - 1.0;   // tent: bilinear taps at +-1/2 texel
-    vec2 k0 = floor(q);
-    vec2 g = q - k0;
-    float wx[3] = float[3]((1.0 - g.x) * 0.5, 0.5, g.x * 0.5);
-    float wy[3] = float[3]((1.0 - g.y) * 0.5, 0.5, g.y * 0.5);"""
-    return f"""\
-// ---- Self-shadowing (diffwash/look/_shadow.py) --------------------------------------------------
-uniform sampler2D look_shadow_map;          // light-space depth (z_ndc + 1) / 2, nearest filtering
-uniform mat4 look_light_view_projection;    // orthographic, fits the mesh (light_view_projection)
-uniform float look_shadow_bias;
-uniform float look_shadow_normal_offset;    // world units along the normal
-
-// 1 where the world point P (unit normal N) is hidden from the light, 0 where lit:
-// {taps}x{taps} texels of percentage-closer comparisons.
-float look_shadow_factor(vec3 P, vec3 N) {{
-    vec3 ndc = (look_light_view_projection * vec4(P + look_shadow_normal_offset * N, 1.0)).xyz;
-    float d = (ndc.z + 1.0) * 0.5 - look_shadow_bias;
-    ivec2 size = textureSize(look_shadow_map, 0);
-{filt}
-    ivec2 base = ivec2(k0);
-    float lit = 0.0;
-    for (int i = 0; i < {taps}; ++i)
-        for (int j = 0; j < {taps}; ++j) {{
-            ivec2 t = clamp(base + ivec2(j, i), ivec2(0), size - 1);
-            lit += wy[i] * wx[j] * (d <= texelFetch(look_shadow_map, t, 0).r ? 1.0 : 0.0);
-        }}
-    return 1.0 - lit;
-}}
-"""
-
-
-def glsl_depth_pass() -> tuple[str, str]:
-    """Vertex and fragment shader bodies of the light-space depth pass (no `#version` line).
-
-    Draw the mesh with `look_light_view_projection` into a depth attachment
-    (or a float colour target: the fragment shader also writes the depth to
-    `look_depth`), cleared to 1, depth test `LESS`.
-    """
-    vert = """\
-layout(location = 0) in vec3 position;      // object space (= world: the model matrix is the identity)
-uniform mat4 look_light_view_projection;
-void main() {
-    gl_Position = look_light_view_projection * vec4(position, 1.0);
-}
-"""
-    frag = """\
-layout(location = 0) out vec4 look_depth;
-void main() {
-    look_depth = vec4(gl_FragCoord.z, 0.0, 0.0, 1.0);
-}
-"""
-    return vert, frag
-

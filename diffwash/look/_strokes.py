@@ -38,11 +38,11 @@ measured trade-off against a texture atlas or a triplanar projection.
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
 from .._lazy import lazy
+from .._xp import namespace, shader_function
 
 spatial = lazy("scipy.spatial")
 trimesh = lazy("trimesh")
@@ -52,7 +52,6 @@ __all__ = [
     "solid_noise",
     "stroke_field",
     "stroke_factor",
-    "glsl_strokes",
     "mean_edge_length",
     "subdivide",
 ]
@@ -243,17 +242,9 @@ def subdivide(
     return v, f, n
 
 
+@shader_function("look_stroke_factor", [("stroke", "float")], "float")
 def stroke_factor(stroke: Float[ArrayLike, "*b"], amplitude: Float[ArrayLike, ""]) -> Float[Array, "*b"]:
     """The thickness factor of the stroke layer: `exp(amplitude * stroke)` (0: off); differentiable."""
-    return jnp.exp(amplitude * jnp.asarray(stroke))
-
-
-def glsl_strokes() -> str:
-    """GLSL of `stroke_factor` (uniform `look_strokes`); the stroke value is a vertex attribute."""
-    return """\
-// ---- Brush strokes (diffwash/look/_strokes.py): a per-vertex attribute, interpolated -------------
-uniform float look_strokes;   // amplitude of the stroke layer
-float look_stroke_factor(float stroke) {
-    return exp(look_strokes * stroke);
-}
-"""
+    xp = namespace(stroke, amplitude)
+    (stroke,) = xp.asfloat(stroke)
+    return xp.exp(amplitude * stroke)

@@ -1,55 +1,19 @@
-"""Small helpers for the look's generated GLSL: literals and the shared full-screen vertex shader.
+"""Running the look's shaders with moderngl: textures, and a full-screen pass read back (tests, figures, hosts).
 
-The look's operators are written twice in their own modules, once in JAX and
-once as GLSL source built by a Python function; every constant of the GLSL
-(tap counts, epsilons, ranges, channel layouts) is formatted from the same
-Python value the JAX version uses, with `float_literal` / `int_literal`, never
-retyped.
+The shaders are `diffwash._look_glsl`'s; this is OpenGL host code, outside the
+model's `diffwash.look`, so that the model imports no OpenGL.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .._lazy import lazy
-from .._xp import float_literal
+from ._lazy import lazy
+from ._look_glsl import FULLSCREEN_VERTEX, header
 
 moderngl = lazy("moderngl")
 
-__all__ = ["float_literal", "vec_literal", "FULLSCREEN_VERTEX", "HEADERS", "header"]
-
-#: The `#version` line (and precision statements) of each target, as in `diffwash._glsl`.
-HEADERS: dict[str, str] = {
-    "glsl330": "#version 330 core\n",
-    "webgl2": "#version 300 es\nprecision highp float;\nprecision highp int;\nprecision highp sampler2D;\n"
-    "precision highp sampler3D;\nprecision highp sampler2DArray;\nprecision highp usampler2D;\n",
-}
-
-
-def header(target: str) -> str:
-    """The first lines of a shader for `target` (`"glsl330"` or `"webgl2"`)."""
-    if target not in HEADERS:
-        raise ValueError(f"target must be one of {', '.join(HEADERS)}, got {target!r}")
-    return HEADERS[target]
-
-
-def vec_literal(values) -> str:
-    """`vecN(...)` of float literals for a sequence of 2 to 4 numbers."""
-    values = [float(v) for v in values]
-    if not 2 <= len(values) <= 4:
-        raise ValueError(f"a GLSL vector has 2 to 4 components, got {len(values)}")
-    return f"vec{len(values)}(" + ", ".join(float_literal(v) for v in values) + ")"
-
-
-#: A full-screen triangle without vertex buffers (draw 3 vertices): every pixel centre runs the
-#: fragment shader once; `gl_FragCoord.xy` is the pixel centre `(column + 0.5, row + 0.5)`.
-FULLSCREEN_VERTEX = """\
-void main() {
-    vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-"""
-
+__all__ = ["texture", "texture3d", "run_fullscreen"]
 
 # --- Running a pass (moderngl): for the tests, the figures and a host program --------------------------
 

@@ -319,17 +319,18 @@ def _render_kernel(vertices, faces, normals, camera, params, vis, both, *, width
 
 
 @functools.partial(jax.jit, static_argnames=("width", "height", "mode", "antialias"))
-def _look_kernel(vertices, faces, normals, camera, params, vis, both, wc, light_tri, light_depth=None, *, width, height, mode,
-                 antialias):  # fmt: skip
+def _look_kernel(vertices, faces, normals, camera, params, vis, both, wc, light_tri, light_depth=None, vertex_shadow=None, *,
+                 width, height, mode, antialias):  # fmt: skip
     """(H, W, 4): the watercolour look's linear RGB (`diffwash._watercolour.look_image`) and coverage.
 
     `light_depth`: the shadow map when the light and the mesh are fixed (computed once, outside), else
-    None: computed here, differentiable in both.
+    None: computed here, differentiable in both. `vertex_shadow`: the shadow factor at the vertices when the
+    shadow's bias and normals are fixed too (computed once, outside), else None.
     """
     surf, clip = surface(vertices, faces, normals, camera, vis, both, width=width, height=height, mode=mode)
     wash, unlit = surface_thicknesses(surf, params)
     rgb = _watercolour.look_image(surf, clip, wash, unlit, vertices, faces, normals, camera, params, vis, wc, light_tri,
-                                  light_depth, width=width, height=height)  # fmt: skip
+                                  light_depth, vertex_shadow, width=width, height=height)  # fmt: skip
     cover = jnp.zeros((width * height, 1), rgb.dtype).at[vis.pixels].set(1, mode="drop", unique_indices=True)
     image = jnp.concatenate([rgb, cover], axis=1)
     if antialias:
@@ -341,7 +342,7 @@ def _render_look(scene, params, visibility, antialias):
     """The scene's watercolour look: the light's depth pass (when it has shadows), then `_look_kernel`."""
     vis = _visibility_for(scene, visibility, antialias)
     wc = scene.watercolour
-    light_tri = depth = None
+    light_tri = depth = shadow = None
     if wc.shadow:
         light = params.light if is_concrete(params.light) else scene.params.light  # the depth pass is a step
         geometry = (scene.mesh.vertices, scene.mesh.faces, light)
@@ -357,8 +358,12 @@ def _render_look(scene, params, visibility, antialias):
                 depth = None  # a traced light: the map is computed in the kernel, differentiable in it
         else:
             light_tri = _watercolour.shadow_triangles(*geometry)
+        fixed = (*geometry, scene.mesh.normals, wc.look.shadow_bias)
+        if depth is not None and is_concrete(fixed):  # the lookups at the vertices are constants too: once
+            with jax.ensure_compile_time_eval():
+                shadow = _light_cache.get(fixed, lambda: _watercolour.fixed_vertex_shadow(*fixed, light_tri, depth), extra="vertices")
     args = _kernel_args(scene, params, vis)
-    return _look_kernel(*args, wc, light_tri, depth, **_kernel_statics(scene), antialias=bool(antialias))
+    return _look_kernel(*args, wc, light_tri, depth, shadow, **_kernel_statics(scene), antialias=bool(antialias))
 
 
 def _int32(a):

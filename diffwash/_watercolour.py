@@ -334,19 +334,47 @@ def _tile(screen: Array, height: int, width: int, dtype) -> Array:
     return jnp.tile(jnp.asarray(screen, dtype), reps)[:height, :width]
 
 
-def _points(surf: Any, clip, vertices, faces, normals, vis, *, width, height) -> tuple[Array, Array]:
-    """World position and unit normal (turned towards the eye on drawn back faces) at the covered pixels."""
-    bary = _bary(surf, clip, faces, vis, width, height)
-    P = interpolate(vertices, faces, vis.pixel_tri, bary)
-    if surf.N is not None:
-        return P, surf.N
-    N = shading.safe_normalize(interpolate(normals, faces, vis.pixel_tri, bary))
-    return P, jnp.where(surf.flip[:, None], -N, N)
+def _attributes(surf: Any, clip, vertices, faces, normals, params, vis, wc: Watercolour, light_tri, light_depth, shadow, dtype,
+                *, width, height) -> dict[str, Array]:  # fmt: skip
+    """The per-vertex attributes the look reads, at the covered pixels, in one interpolation (one gather per corner
+    for them all, where each alone took as long): `P`, `N` (world position and unit normal, turned towards the eye
+    on drawn back faces; for the hatching), `shadow` (`vertex_shadow`), `mix`, `stroke`; those the look has."""
+    columns: dict[str, Array] = {}
+    if wc.tam is not None:
+        columns["P"] = jnp.asarray(vertices)
+        if surf.N is None:
+            columns["N"] = jnp.asarray(normals)
+    if wc.shadow:
+        if shadow is None:
+            shadow = vertex_shadow(vertices, faces, normals, params.light, wc.look.shadow_bias, light_tri, light_depth)
+        columns["shadow"] = jnp.asarray(shadow)[:, None]
+    for name, values in (("mix", wc.mix), ("stroke", wc.strokes)):
+        if values is not None:
+            columns[name] = jnp.asarray(values, dtype)[:, None]
+    if not columns:
+        return {}
+    table = jnp.concatenate(list(columns.values()), axis=1)
+    # Apart: XLA would fuse the table's making (the shadow lookups) into the gathers, once per pixel and corner.
+    at = apart(interpolate, table, faces, vis.pixel_tri, _bary(surf, clip, faces, vis, width, height))
+    out, start = {}, 0
+    for name, c in columns.items():
+        out[name] = at[:, start : start + c.shape[1]].astype(c.dtype)
+        start += c.shape[1]
+    for name in ("shadow", "mix", "stroke"):
+        if name in out:
+            out[name] = out[name][:, 0]
+    if "P" in out:
+        if surf.N is not None:
+            out["N"] = surf.N
+        else:
+            N = shading.safe_normalize(out["N"])
+            out["N"] = jnp.where(surf.flip[:, None], -N, N)
+    return out
 
 
 def look_image(
     surf: Any, clip: Array, wash: Array, unlit: Array, vertices, faces, normals, camera, params, vis, wc: Watercolour,
-    light_tri: Array | None, light_depth: Array | None = None, *, width: int, height: int,
+    light_tri: Array | None, light_depth: Array | None = None, shadow: Array | None = None, *, width: int, height: int,
 ) -> Array:  # fmt: skip
     r"""The look on the model's thicknesses at the covered pixels: `(H * W, 3)` linear RGB, the whole image.
 
@@ -358,17 +386,16 @@ def look_image(
     `wc.look`, `wc.mix`, the pigments, the constants and the geometry.
     `light_tri`: the shadow map's triangles (`ops.rasterize` of
     `look.light_clip`), or None without shadows; `light_depth`: the shadow map
-    (`shadow_depth`) when the light and the mesh are fixed, else None (computed here).
+    (`shadow_depth`) when the light and the mesh are fixed, else None (computed here); `shadow`: the
+    shadow factor at the vertices (`fixed_vertex_shadow`) when the bias and normals are fixed too, else None.
     """
     look = wc.look
     dtype = wash.dtype
-    sh = hatch = None
+    attrs = _attributes(surf, clip, vertices, faces, normals, params, vis, wc, light_tri, light_depth, shadow, dtype,
+                        width=width, height=height)  # fmt: skip
+    sh, hatch = attrs.get("shadow"), None
     if wc.tam is not None:
-        P, N = jax.lax.optimization_barrier(_points(surf, clip, vertices, faces, normals, vis, width=width, height=height))
-    if wc.shadow:
-        sh_v = vertex_shadow(vertices, faces, normals, params.light, look.shadow_bias, light_tri, light_depth)
-        sh = interpolate(sh_v, faces, vis.pixel_tri, _bary(surf, clip, faces, vis, width, height))
-    if wc.tam is not None:
+        P, N = attrs["P"], attrs["N"]
         eye = jnp.asarray(camera.eye, dtype)
         fwd = shading.safe_normalize(jnp.asarray(camera.target, dtype) - eye)
         d = P - eye
@@ -380,9 +407,7 @@ def look_image(
     # and compute them again there (the hatching several times per pixel).
     w, u = jax.lax.optimization_barrier((w, u))
     zero = jnp.zeros_like(w)
-    bary = None if wc.mix is None and wc.strokes is None else _bary(surf, clip, faces, vis, width, height)
-    m = zero if wc.mix is None else interpolate(jnp.asarray(wc.mix, dtype), faces, vis.pixel_tri, bary)
-    b = zero if wc.strokes is None else interpolate(jnp.asarray(wc.strokes, dtype), faces, vis.pixel_tri, bary)
+    m, b = attrs.get("mix", zero), attrs.get("stroke", zero)
     # The edge blur is the one operator over the whole image; the rest runs on the covered pixels only
     # (bare paper is thickness 0: its glaze is the paper), as image_terms(..., mean=) allows.
     n, pixels = width * height, vis.pixels
@@ -420,6 +445,12 @@ def vertex_shadow(vertices, faces, normals, light, bias, light_tri: Array, light
     offset = 1.5 * 2 / (jnp.linalg.norm(vp[0, :3]) * light_tri.shape[0])  # look.normal_offset, traced
     n = shading.safe_normalize(jnp.asarray(normals, v.dtype))
     return wl.shadow(depth, vp, v, bias, normals=n, normal_offset=offset)
+
+
+@jax.jit
+def fixed_vertex_shadow(vertices: Any, faces: Any, light: Any, normals: Any, bias: Any, light_tri: Array, light_depth: Array) -> Array:
+    """`vertex_shadow` of a fixed light, mesh and bias, computed once outside the look's kernel (as `shadow_depth`)."""
+    return vertex_shadow(vertices, faces, normals, light, bias, light_tri, light_depth)
 
 
 def _bary(surf, clip, faces, vis, width, height):

@@ -369,10 +369,11 @@ def hatch_ink_at(
     # it, the level) into each of the 48 reads and compute it again there (several times slower).
     sizes, offsets = jnp.asarray(sizes_np), jnp.asarray(offsets_np)
 
-    def level(flat: Array, uv: Array, li: Array, first: Array, second: Array, ink_k: Array, g: Array) -> Array:
-        n = sizes[li]
+    def level(flat: Array, uv: Array, li: Array | int, first: Array, second: Array, ink_k: Array, g: Array) -> Array:
+        # `li` per point, or the finest level's 0 for every point (its side and offset then constants, not reads).
+        n, offset = (sizes[li], offsets[li]) if isinstance(li, jax.Array) else (int(sizes_np[li]), int(offsets_np[li]))
         mask = n - 1  # wrap-around (GL_REPEAT): sides are powers of two
-        t = uv * n[..., None].astype(uv.dtype) - 0.5
+        t = uv * (n[..., None].astype(uv.dtype) if isinstance(n, jax.Array) else n) - 0.5
         i0 = jnp.floor(t)
         f = t - i0
         i0 = i0.astype(jnp.int32)
@@ -382,7 +383,7 @@ def hatch_ink_at(
         out = 0.0
         for row, wy in ((y0, 1 - fy), (y1, fy)):
             for col, wx in ((x0, 1 - fx), (x1, fx)):
-                texel = (offsets[li] + row * n + col) * tones
+                texel = (offset + row * n + col) * tones
                 out = out + (wy * wx) * (flat[texel + first] * ink_k + flat[texel + second] * g)
         return out
 
@@ -395,7 +396,7 @@ def hatch_ink_at(
     def reads_finest(flat, P, w, fl, level0, level1, *tone):  # every point magnified: level 0 alone, weight 1
         ink = 0.0
         for p, uv in enumerate(triplanar_uv(P, scale, int(sizes_np[0]))):
-            ink = ink + w[..., p] * level(flat, uv, level0, *tone)
+            ink = ink + w[..., p] * level(flat, uv, 0, *tone)
         return ink
 
     # Where the map is magnified at every point (the level of detail clamped at 0, as in a close-up or the

@@ -242,7 +242,8 @@ class Surface(eqx.Module):
     """The geometry shading needs at the covered pixels: what stays fixed while only `Params` change.
 
     Per-pixel shading keeps each pixel's unit normal `N` (turned towards the eye
-    on drawn back faces) and unit direction to the eye `V`; per-vertex shading
+    on drawn back faces), unit direction to the eye `V` and barycentrics (for
+    other attributes, as the look's); per-vertex shading
     keeps the vertices' normals and eye directions and, per pixel, its triangle,
     barycentrics and whether the triangle is a drawn back face (`flip`). The
     fitters compute it once and shade it at every step.
@@ -276,7 +277,7 @@ def surface(vertices, faces, normals, camera, vis, both, *, width, height, mode)
         N = shading.safe_normalize(interpolate(normals, faces, tri, bary))
         N = jnp.where(flip[:, None], -N, N)
         V = shading.safe_normalize(eye - interpolate(vertices, faces, tri, bary))
-        return Surface(N=N, V=V, mode=mode), clip
+        return Surface(N=N, V=V, bary=bary, mode=mode), clip  # bary: for what else is interpolated (the look)
     V = shading.safe_normalize(eye - vertices)
     return Surface(vertex_N=normals, vertex_V=V, faces=faces, tri=tri, bary=bary, flip=flip, mode=mode), clip
 

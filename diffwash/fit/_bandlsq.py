@@ -44,7 +44,12 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float, PyTree, Scalar
 
-__all__ = ["BandLevenbergMarquardt", "Convergence", "newton_decrement", "loss_floor", "GN_TOL"]
+from .._lazy import lazy
+
+scipy_linalg = lazy("scipy.linalg")
+scipy_sparse_linalg = lazy("scipy.sparse.linalg")
+
+__all__ = ["BandLevenbergMarquardt", "Convergence", "newton_decrement", "loss_floor", "GN_TOL", "band_covariance"]
 
 #: A least-squares fit is at a minimum when a full Gauss-Newton step from where it stopped would lower its loss by
 #: at most this fraction (`newton_decrement`): the gradient, measured in the fit's own scale (the curvature's),
@@ -211,3 +216,58 @@ class BandLevenbergMarquardt(optx.AbstractGaussNewton):
 
 def _quiet(**kwargs) -> None:
     del kwargs
+
+
+def band_covariance(fn, y, n_rows: int, theta: np.ndarray, rank: int, tiny: float = 1e-9):
+    r"""The Laplace covariance of a band-separable least-squares problem at `y`, restricted to the parameters
+    `theta`, as its `rank` leading eigenvectors (scaled) plus the remaining diagonal, without forming the
+    $(BQ + G)$-square matrix: $\Sigma = \sigma^2 H^{-1}$ with $H$ the Gauss-Newton matrix (arrow-shaped, as in
+    `BandLevenbergMarquardt`), its band blocks and the Schur complement of the shared parameters factored once;
+    the diagonal exactly, the eigenvectors by Lanczos iteration on products with $\Sigma$ (`scipy.sparse.linalg.eigsh`).
+
+    **Arguments:**
+
+    - `fn`: `(band, shared), None -> (per band (B, M), shared (H,))`; the first `n_rows` columns of each band are
+      the rows' residuals (their median absolute value, times 1.4826, is $\sigma$: robust to a few bad rows).
+    - `y`: `(band (B, Q), shared (G,))`.
+    - `theta`: positions in `(band.ravel(), shared)` of the parameters kept.
+    - `rank`: eigenvectors kept.
+    - `tiny`: a ridge of this share of the largest curvature, for directions the problem leaves free.
+
+    **Returns:** `(factor (m, rank), diagonal (m,), sigma)`: $\Sigma_\theta \approx F F^\top + \mathrm{diag}(d)$.
+    """
+    band, shared = y
+    B, Q = band.shape
+    G = shared.shape[0]
+    (rows, _), lin = jax.linearize(lambda b, s: fn((b, s), None), band, shared)
+    Jr, Js = jax.vmap(lin)(*_tangents(band, shared))  # (Q + G, B, M), (Q + G, H)
+    Jr, Js, rows = (np.asarray(x, np.float64) for x in (Jr, Js, rows))
+    sigma2 = float((1.4826 * np.median(np.abs(rows[:, :n_rows]))) ** 2)
+    Hbb = np.einsum("qbm,pbm->bqp", Jr[:Q], Jr[:Q])
+    Hbg = np.einsum("qbm,gbm->bqg", Jr[:Q], Jr[Q:])
+    Hgg = np.einsum("gbm,hbm->gh", Jr[Q:], Jr[Q:]) + Js[Q:] @ Js[Q:].T
+    delta = tiny * max(float(np.max(np.diagonal(Hbb, axis1=1, axis2=2), initial=0.0)),
+                       float(np.max(np.diag(Hgg), initial=0.0)), 1e-30)  # fmt: skip
+    Dinv = np.linalg.inv(Hbb + delta * np.eye(Q))  # (B, Q, Q): small blocks
+    X = Dinv @ Hbg  # (B, Q, G)
+    schur = Hgg + delta * np.eye(G) - np.einsum("bqg,bqh->gh", Hbg, X)
+    Sinv = scipy_linalg.pinvh(0.5 * (schur + schur.T))
+    n = B * Q + G
+    var = np.concatenate([(np.diagonal(Dinv, axis1=1, axis2=2) + np.einsum("bqg,gh,bqh->bq", X, Sinv, X)).ravel(),
+                          np.diag(Sinv)])  # fmt: skip
+
+    def cov(v):  # sigma^2 H^-1 on theta
+        u = np.zeros(n)
+        u[theta] = np.ravel(v)
+        ub = u[: B * Q].reshape(B, Q)
+        zg = Sinv @ (u[B * Q :] - np.einsum("bqg,bq->g", X, ub))
+        zb = np.einsum("bqp,bp->bq", Dinv, ub) - X @ zg
+        return sigma2 * np.concatenate([zb.ravel(), zg])[theta]
+
+    m = len(theta)
+    k = min(rank, m - 1)
+    op = scipy_sparse_linalg.LinearOperator((m, m), matvec=cov, dtype=np.float64)
+    ev, U = scipy_sparse_linalg.eigsh(op, k=k, which="LA", v0=np.ones(m), tol=1e-6)
+    F = U * np.sqrt(np.maximum(ev, 0))
+    diag = np.maximum(sigma2 * var[theta] - np.sum(F * F, axis=1), 0.0)
+    return F, diag, float(np.sqrt(sigma2))

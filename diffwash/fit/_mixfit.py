@@ -50,7 +50,7 @@ from .. import _regions, colorimetry, km, mixing, spectral
 from ..library import Library
 from ..measurements import Measurements
 from . import _pairs, _posterior, _priors, _seen
-from ._bandlsq import GN_TOL, BandLevenbergMarquardt, Convergence, loss_floor, newton_decrement
+from ._bandlsq import GN_TOL, BandLevenbergMarquardt, Convergence, band_covariance, loss_floor, newton_decrement
 
 __all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score_library", "residuals", "RGB_GRID"]
 
@@ -94,6 +94,10 @@ class MixModel:
     - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter).
     - `scatter_spread`, `gamma_spread`: the table's population priors (`diffwash.fit._priors`): how far a
       pigment's log S (per band) and log amount-law exponent may stray from the table's mean (0: no prior).
+    - `one_amount`: hold what the rows leave free (`diffwash.fit._priors.TablePriors`): the amount law of a
+      pigment whose layers all have one total amount at the prior exponent, and the scattering of a pigment
+      measured alone at one amount over light grounds only near the table's population. Pigments measured at
+      several amounts are not affected.
     """
 
     gamma: bool = True
@@ -107,12 +111,13 @@ class MixModel:
     pair_ridge: float = _pairs.PAIR_RIDGE
     scatter_spread: float = _priors.SCATTER_SPREAD
     gamma_spread: float = _priors.GAMMA_SPREAD
+    one_amount: bool = True
 
     def describe(self) -> dict[str, Any]:
         return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
                 "own": self.own, "loss": self.loss, "ridge": self.ridge, "pairs": self.pairs,
                 "pair_ridge": self.pair_ridge, "scatter_spread": self.scatter_spread,
-                "gamma_spread": self.gamma_spread}  # fmt: skip
+                "gamma_spread": self.gamma_spread, "one_amount": self.one_amount}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -195,12 +200,23 @@ def _shared(shared, P: int, model: MixModel):
     return gam, w, k2
 
 
-def _shared_prior(shared, P: int, model: MixModel):
-    """Weak ridge: exponents near 1, weights near 1 (their common scale is otherwise free), k2 near 0.04; and the
-    amount laws' population prior (`_priors.gamma_population`)."""
+def _shared_prior(shared, P: int, model: MixModel, priors: _priors.TablePriors):
+    """Weak ridge: exponents near 1, weights near 1 (their common scale is otherwise free), k2 near 0.04; the
+    amount laws' population prior (`_priors.gamma_population`) and the prior exponent of the pigments the table
+    measured at one amount (`_priors.gamma_fixed`, in the log-reflectance residuals' scale)."""
     lam = 0.01 * model.prior
     pop = _priors.gamma_population(shared[:P], model.gamma_spread if model.gamma else 0.0)
-    return jnp.concatenate([lam * shared[: 2 * P], lam * (shared[2 * P :] + 3.0), pop])
+    one = _priors.gamma_fixed(shared[:P], priors if model.gamma else _priors.TablePriors(), _priors.PRIOR_NOISE)
+    level = _priors.scatter_level(shared[2 * P + 1 :], priors, _priors.PRIOR_NOISE)
+    return jnp.concatenate([lam * shared[: 2 * P], lam * (shared[2 * P : 2 * P + 1] + 3.0), pop, one, level])
+
+
+def _levels(band: np.ndarray, priors: _priors.TablePriors, P: int, log_gamma=None) -> np.ndarray:
+    """The weakly measured pigments' scattering levels (`_priors.scatter_weak`) that `band` (B, 2P) implies: each
+    one's mean log S t(a) over the bands (a start, and the latents' value at a fit's end)."""
+    w = np.asarray(priors.scatter_weak, int)
+    g = np.exp(log_gamma) if log_gamma is not None else np.full(P, _priors.GAMMA_PRIOR)
+    return (band[:, P:].mean(axis=0) + g * np.asarray(priors.log_amount))[w] if len(w) else np.zeros(0)
 
 
 def _init_band(m: Measurements, A: np.ndarray, names: list[str]) -> np.ndarray:
@@ -242,27 +258,42 @@ class _SharedPrior(eqx.Module):
 
     P: int = eqx.field(static=True)
     model: MixModel = eqx.field(static=True)
+    priors: _priors.TablePriors = eqx.field(static=True)
 
     def __call__(self, shared):
-        return _shared_prior(shared, self.P, self.model)
+        return _shared_prior(shared, self.P, self.model, self.priors)
 
 
 class _SpectralResiduals(eqx.Module):
     """The spectral stage's residuals `((band, shared), args) -> (per band, shared prior)`: log reflectance
-    per band, and a weak pull of each band's `log K, log S` towards its start."""
+    per band, a weak pull of each band's `log K, log S` towards its start, and the priors on scattering (the
+    population's, `MixModel.scatter_spread`; the weakly measured pigments', `_priors.scatter_weak`)."""
 
     reflect: _Reflect
     Y: Array
     band0: Array
+    priors: _priors.TablePriors = eqx.field(static=True)
 
     def __call__(self, y, args):
         band, shared = y
-        eps = 1e-3 * self.reflect.model.prior
+        P, model = self.reflect.P, self.reflect.model
+        eps = 1e-3 * model.prior
         R = self.reflect(band, shared)
-        pop = _priors.scatter_population(band[:, self.reflect.P :], self.reflect.model.scatter_spread, _priors.LOG_NOISE)
+        pop = _priors.scatter_population(band[:, P:], model.scatter_spread, _priors.LOG_NOISE)
+        weak = _priors.scatter_weak(band[:, P:], jnp.log(_shared(shared, P, model)[0]), shared[2 * P + 1 :], self.priors,
+                                    _priors.PRIOR_NOISE)  # fmt: skip
         per_band = jnp.concatenate([(jnp.log(R + LOG_FLOOR) - jnp.log(self.Y + LOG_FLOOR)).T, eps * (band - self.band0),
-                                    pop], axis=1)  # fmt: skip
-        return per_band, _shared_prior(shared, self.reflect.P, self.reflect.model)
+                                    pop, weak], axis=1)  # fmt: skip
+        return per_band, _shared_prior(shared, P, model, self.priors)
+
+
+def _shared_start(band0, priors: _priors.TablePriors, P: int, model: MixModel):
+    """The spectral stage's start of the shared terms: amount-law exponents 1 (a pigment measured at one amount:
+    the prior's), mixing weights 1, the surface term's logit -3, the weakly measured pigments' levels."""
+    log_gamma0 = np.zeros(P)
+    log_gamma0[list(priors.gamma_fixed) if model.gamma else []] = np.log(_priors.GAMMA_PRIOR)  # one amount: the prior
+    levels = _levels(np.asarray(band0), priors, P)
+    return jnp.asarray(np.concatenate([log_gamma0, np.zeros(P), [-3.0], levels]), band0.dtype)
 
 
 def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol: float, obs: spectral.Observation):
@@ -271,9 +302,10 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
     dtype = jnp.zeros(()).dtype
     A, G, Y = (jnp.asarray(x, dtype) for x in (A, G, m.values))
     band0 = jnp.asarray(_init_band(m, np.asarray(A), names), dtype)
-    shared0 = jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0)
     reflect = _Reflect(A, G, P, model)
-    fn = _SpectralResiduals(reflect, Y, band0)
+    priors = _priors.table_priors(np.asarray(A), np.asarray(G), model.one_amount)
+    shared0 = _shared_start(band0, priors, P, model)
+    fn = _SpectralResiduals(reflect, Y, band0, priors)
     if 3 * len(m) < band0.size:  # few rows, many band parameters: most band directions are the weak prior's,
         # along which the solver would creep to max_steps; stop when a chunk of steps no longer lowers the loss
         y, ok, steps = _solve_in_chunks(fn, (band0, shared0), None, max_steps, rtol, judge=model.loss != "de2000")
@@ -285,7 +317,7 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
         ok = Convergence(converged=bool(sol.result == optx.RESULTS.successful), steps=steps, stage="log-reflectance fit")
     if model.loss == "de2000":
         y, ok, more = _seen.refine_in_de2000(reflect, obs.lab, obs.lab(Y), y, ridge=model.ridge,
-                                             shared_prior=_SharedPrior(P, model), max_steps=max_steps,
+                                             shared_prior=_SharedPrior(P, model, priors), max_steps=max_steps,
                                              rtol=max(rtol, 1e-5))  # fmt: skip
         steps += more
     band, shared = y
@@ -335,6 +367,7 @@ class _RGBResiduals(eqx.Module):
     white: Array
     P: int = eqx.field(static=True)
     model: MixModel = eqx.field(static=True)
+    priors: _priors.TablePriors = eqx.field(static=True)
 
     def __call__(self, y, args):
         P, model = self.P, self.model
@@ -353,7 +386,7 @@ class _RGBResiduals(eqx.Module):
         ridge = RGB_RIDGE * model.prior * (coef - self.coef0).ravel()  # pins the directions three channels leave free
         D = np.diff(np.eye(self.phi.shape[1] - 1), n=2, axis=0)  # second differences of the bumps' coefficients
         per_band = jnp.concatenate([r, RGB_SMOOTH * model.prior * (coef[:, 1:] @ D.T).ravel(), ridge])[None]
-        return per_band, _shared_prior(shared, P, model)
+        return per_band, _shared_prior(shared, P, model, self.priors)
 
 
 def _fit_rgb(m: Measurements, names, model: MixModel, max_steps: int, rtol: float):
@@ -369,7 +402,8 @@ def _fit_rgb(m: Measurements, names, model: MixModel, max_steps: int, rtol: floa
     shared0 = jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0)
     cast = lambda x: jnp.asarray(x, dtype)  # noqa: E731
     fn = _RGBResiduals(cast(A), cast(G), cast(m.values), jnp.asarray(m.lo), jnp.asarray(m.hi), cast(phi), coef0,
-                       cast(colorimetry.WHITE_D65), P, model)  # fmt: skip
+                       cast(colorimetry.WHITE_D65), P, model,
+                       dataclasses.replace(_priors.table_priors(A, G, model.one_amount), scatter_weak=()))  # fmt: skip
     (flat, shared), ok, steps = _solve_in_chunks(fn, (coef0.reshape(1, -1), shared0), cast(obs.to_rgb), max_steps,
                                                  rtol)  # fmt: skip
     coef = flat.reshape(coef0.shape)
@@ -478,6 +512,9 @@ def fit_mixtures(
     record = {"model": model.describe(), "table": m.path, "converged": ok, "iterations": steps,
               "convergence": [c.to_dict() for c in stages], "summary": fit.summary(),
               "rows": _row_record(m, de, de_ab)}  # fmt: skip
+    if model.one_amount:
+        priors = _priors.table_priors(*_dense(m, list(names)))
+        record["priors"] = priors.describe(list(names), spectral=m.spectral, gamma=model.gamma)
     post = None
     if posterior and m.spectral and model.loss == "de2000":
         post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib)
@@ -497,11 +534,19 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     w = np.asarray(palette.weights, np.float64)
     gam = np.asarray(palette.law.gamma, np.float64)
     k2_logit = np.log(k2 / (K2_MAX - k2)) if model.surface and 0 < k2 < K2_MAX else -3.0
-    shared = jnp.asarray(np.concatenate([np.log(gam), np.log(w), [k2_logit]]), dtype)
     reflect = _Reflect(A, G, P, model)
     band0 = jnp.asarray(_init_band(m, np.asarray(A), names), dtype)
-    spectral = _SpectralResiduals(reflect, Y, band0)
-    F, diag, sigma = _posterior.laplace(spectral, (band, shared), len(m), P, model.gamma)
+    priors = _priors.table_priors(np.asarray(A), np.asarray(G), model.one_amount)
+    levels = _levels(np.asarray(band, np.float64), priors, P, np.log(gam))
+    shared = jnp.asarray(np.concatenate([np.log(gam), np.log(w), [k2_logit], levels]), dtype)
+    spectral = _SpectralResiduals(reflect, Y, band0, priors)
+    if band.size + shared.size <= LAPLACE_DENSE:
+        F, diag, sigma = _posterior.laplace(spectral, (band, shared), len(m), P, model.gamma)
+    else:  # never the dense (BQ + G)-square matrix and its eigendecompositions: minutes for 40 paints x 77 bands
+        theta = _posterior._theta_index(int(band.shape[0]), P, model.gamma)
+        F, diag, sigma = band_covariance(spectral, (band, shared), len(m), theta, _posterior.RANK)
+        F, diag = _theta_padded(F, diag, int(band.shape[0]), P)
+    from_prior = _from_priors(priors, F, diag, sigma, int(band.shape[0]), P, model)
     lab_m = measured_lab(m, obs)
     pred = lib.predict(m.pigments, m.amounts, m.ground)
     kind = np.array(_regions.kinds(m.pigments, pairs(m)))
@@ -517,16 +562,17 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     row_pigment = np.array([index[p[0]] for p, k in zip(m.pigments, kind) if k == "single"], int)
     a = _posterior.shrink_per_pigment(lambda a: draw(a, one), row_pigment, P, lab_m[one], pred.lab[one])
     F, diag = _posterior.scaled(F, diag, a, owner)
-    pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge), _SharedPrior(P, model))
-    start = (band0, jnp.zeros(2 * P + 1, dtype).at[2 * P].set(-3.0))  # the fit's own start (`_fit_spectral`)
+    pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge),
+                        _SharedPrior(P, model, priors))  # fmt: skip
+    start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
     refit = lambda folds: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
                                                     rtol=1e-7 if dtype == jnp.float64 else 1e-4)  # fmt: skip
     scale, rows, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit)
     record = {"noise_log_reflectance": round(sigma, 6),
               "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
               "model_error": {k: round(v, 4) for k, v in scale.items()}, "rows": rows, **how,
-              "pigments": _posterior.pigment_report(F, diag, names, int(band.shape[0]),
-                                                    {n for p in pairs(m) for n in p})}  # fmt: skip
+              "pigments": _mark_priors(_posterior.pigment_report(F, diag, names, int(band.shape[0]),
+                                                                 {n for p in pairs(m) for n in p}), from_prior)}  # fmt: skip
     return _regions.Posterior(F, diag, scale, tuple(pairs(m)), record)
 
 
@@ -557,6 +603,55 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
             scale[k] = max(_posterior.calibrate_scale(lab_m[t], h, spread[:, t]) for t, h in zip(folds, held))
         how[f"{k}_from"] = f"{what} cross-validation, {len(folds)} folds refitted from the fit's start"
     return scale, rows, how
+
+
+#: Problems of at most this many parameters take the posterior of `_posterior.laplace` (dense); larger ones
+#: `_bandlsq.band_covariance` (the same covariance, through the band structure).
+LAPLACE_DENSE = 2000
+
+
+def _theta_padded(F, diag, B: int, P: int):
+    """A covariance over theta without the amount laws (`MixModel.gamma` off) padded with their zero rows, as
+    `_posterior.laplace` returns it."""
+    m = 2 * P * B + P
+    if F.shape[0] == m:
+        return F, diag
+    pad = m - F.shape[0]
+    return np.concatenate([F, np.zeros((pad, F.shape[1]))]), np.concatenate([diag, np.zeros(pad)])
+
+
+#: A parameter held by a prior came from it, not from the rows, where its posterior variance exceeds this share of
+#: the prior's own variance (the rows then add less precision than the prior holds).
+FROM_PRIOR = 0.5
+
+
+def _from_priors(priors: _priors.TablePriors, F, diag, sigma: float, B: int, P: int, model: MixModel) -> dict:
+    """Per pigment index, what the table's priors (`_priors.TablePriors`) decided rather than its rows: the amount
+    law of every pigment measured at one amount; the scattering of a weakly measured pigment whose posterior
+    variance of log S (mean over bands) is above `FROM_PRIOR` of the prior's (both in the residuals' scale)."""
+    out: dict[int, list[str]] = {}
+    if model.gamma:
+        for i in priors.gamma_fixed:
+            out.setdefault(i, []).append("amount law")
+    var = np.sum(F * F, axis=1) + diag
+    prior_var = (_priors.SCATTER_PRIOR**2 + _priors.LEVEL_POP**2) * (sigma / _priors.PRIOR_NOISE) ** 2
+    for i in priors.scatter_weak:
+        if np.mean(var[P * B + i * B : P * B + (i + 1) * B]) > FROM_PRIOR * prior_var:
+            out.setdefault(i, []).append("scattering")
+    return out
+
+
+def _mark_priors(report: list[dict], from_prior: dict) -> list[dict]:
+    """`_posterior.pigment_report` with what the priors decided named as such (`from_the_prior`, `priors`) and the
+    measurement that would pin it (a second amount; the paint over black, or a tint with white)."""
+    need = {"amount law": "a second amount", "scattering": "the paint over black, or a tint with white"}
+    for i, held in from_prior.items():
+        r = report[i]
+        r["priors"] = held
+        r["from_the_prior"] = list(dict.fromkeys([*r["from_the_prior"], *held]))
+        asks = [x for x in r["measure"].split("; ") if x]
+        r["measure"] = "; ".join(dict.fromkeys([*[need[h] for h in held], *asks]))
+    return report
 
 
 def measured_lab(m: Measurements, obs: spectral.Observation) -> np.ndarray:

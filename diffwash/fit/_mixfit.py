@@ -219,6 +219,22 @@ def _levels(band: np.ndarray, priors: _priors.TablePriors, P: int, log_gamma=Non
     return (band[:, P:].mean(axis=0) + g * np.asarray(priors.log_amount))[w] if len(w) else np.zeros(0)
 
 
+def _pin_amount_laws(y, priors: _priors.TablePriors, P: int, model: MixModel):
+    """Each pigment measured at one amount moved along the direction its rows leave exactly flat, to its prior
+    exponent: gamma to `priors.gamma_centre`, log K and log S by -(change of gamma) log(A / a0), so every layer it
+    is in keeps its optical depths (each is at that one amount A). The solver creeps along such a direction, whose
+    only curvature is the prior's, and stops wherever its first steps left it."""
+    band, shared = y
+    if not model.gamma or not priors.gamma_fixed:
+        return y
+    lg = np.asarray(shared[:P], np.float64)
+    fixed = np.asarray(priors.gamma_fixed, int)
+    step = priors.gamma_centre(lg) - lg[fixed]
+    shift = np.zeros(2 * P)
+    shift[fixed] = shift[P + fixed] = -(np.exp(lg[fixed] + step) - np.exp(lg[fixed])) * np.asarray(priors.fixed_log_amount)
+    return band + jnp.asarray(shift, band.dtype), shared.at[fixed].add(jnp.asarray(step, shared.dtype))
+
+
 def _init_band(m: Measurements, A: np.ndarray, names: list[str]) -> np.ndarray:
     """log K, log S per band from each pigment's thickest single layer: S = 1, K/S from its R_inf."""
     P = len(names)
@@ -315,12 +331,13 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
         sol = optx.least_squares(fn, solver, (band0, shared0), max_steps=max_steps, throw=False)
         y, steps = sol.value, int(sol.stats["num_steps"])
         ok = Convergence(converged=bool(sol.result == optx.RESULTS.successful), steps=steps, stage="log-reflectance fit")
+    y = _pin_amount_laws(y, priors, P, model)
     if model.loss == "de2000":
         y, ok, more = _seen.refine_in_de2000(reflect, obs.lab, obs.lab(Y), y, ridge=model.ridge,
                                              shared_prior=_SharedPrior(P, model, priors), max_steps=max_steps,
                                              rtol=max(rtol, 1e-5))  # fmt: skip
         steps += more
-    band, shared = y
+    band, shared = _pin_amount_laws(y, priors, P, model)
     gam, w, k2 = _shared(shared, P, model)
     K, S = np.exp(np.asarray(band[:, :P], np.float64)).T, np.exp(np.asarray(band[:, P:], np.float64)).T
     return K, S, np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2), ok, steps

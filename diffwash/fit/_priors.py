@@ -120,12 +120,20 @@ class TablePriors:
     - `scatter_weak`: indices of the pigments measured alone at one amount over light grounds only.
     - `log_amount`: every pigment's log(a / a0) (a0 = 0.05) at its measured amount alone (the geometric mean of its
       amounts; 0 where it is never alone): a layer's scattering depth is then log S + gamma log_amount.
+    - `fixed_log_amount`: for each pigment of `gamma_fixed`, log(A / a0) of the one total amount of its layers.
     """
 
     gamma_fixed: tuple[int, ...] = ()
     gamma_free: tuple[int, ...] = ()
     scatter_weak: tuple[int, ...] = ()
     log_amount: tuple[float, ...] = ()
+    fixed_log_amount: tuple[float, ...] = ()
+
+    def gamma_centre(self, log_gamma: np.ndarray) -> float:
+        """The log exponent `gamma_fixed` holds its pigments at (`gamma_fixed`'s centre), from `log_gamma` (P,)."""
+        prior = float(np.log(GAMMA_PRIOR))
+        free = np.asarray(log_gamma, np.float64)[list(self.gamma_free)]
+        return (float(np.sum(free)) + GAMMA_PSEUDO * prior) / (len(free) + GAMMA_PSEUDO)
 
     def describe(self, names, spectral: bool = True, gamma: bool = True) -> dict:
         """The priors that hold this table's pigments, by name, for the fit record (`spectral`: the scattering
@@ -148,18 +156,19 @@ def table_priors(A: np.ndarray, G: np.ndarray, on: bool = True) -> TablePriors:
     totals = A.sum(axis=2)  # (N, L)
     stack = np.count_nonzero(totals, axis=1) > 1
     light = G.mean(axis=1) > DARK
-    fixed, weak, log_amount = [], [], []
+    fixed, weak, log_amount, fixed_at = [], [], [], []
     for i in range(P):
         used = A[:, :, i] > 0
         if _distinct(totals[used]) <= 1:
             fixed.append(i)
+            fixed_at.append(float(np.log(totals[used][0] / 0.05)) if used.any() else 0.0)
         alone = ~stack & (np.count_nonzero(A.sum(axis=1), axis=1) == 1) & used.any(axis=1)
         amounts = A[alone, :, i].sum(axis=1)
         if _distinct(amounts) <= 1 and np.all(light[alone]) and not np.any(stack & used.any(axis=1)):
             weak.append(i)
         log_amount.append(float(np.mean(np.log(amounts / 0.05))) if len(amounts) else 0.0)
     free = tuple(i for i in range(P) if i not in fixed)
-    return TablePriors(tuple(fixed), free, tuple(weak), tuple(log_amount))
+    return TablePriors(tuple(fixed), free, tuple(weak), tuple(log_amount), tuple(fixed_at))
 
 
 def scatter_weak(log_s, log_gamma, level, priors: TablePriors, scale: float):

@@ -186,7 +186,7 @@ def test_a_fold_is_refitted_from_the_fits_start_not_pulled_towards_the_full_fit(
     from test_mix_fit import GRID as G7, _truth, _write_table
 
     from diffwash import measurements
-    from diffwash.fit import MixModel, _mixfit, _seen, fit_mixtures
+    from diffwash.fit import MixModel, _mixfit, _priors, _seen, fit_mixtures
 
     pal, paper = _truth(weights=(1.0, 4.0, 0.25))
     _write_table(tmp_path / "t.csv", pal, paper)
@@ -200,11 +200,12 @@ def test_a_fold_is_refitted_from_the_fits_start_not_pulled_towards_the_full_fit(
     obs = full.observation
     reflect = _mixfit._Reflect(A, G, P, model)
     band0 = jnp.asarray(_mixfit._init_band(m, np.asarray(A), names))
-    spectral = _mixfit._SpectralResiduals(reflect, jnp.asarray(m.values), band0)
+    priors = _priors.table_priors(np.asarray(A), np.asarray(G), model.one_amount)
+    spectral = _mixfit._SpectralResiduals(reflect, jnp.asarray(m.values), band0, priors)
     band = jnp.log(jnp.concatenate([full.palette.K.T, full.palette.S.T], axis=1))
     lab_m = jnp.asarray(_mixfit.measured_lab(m, obs))
-    pb = _seen._Problem(reflect, obs.lab, lab_m, band, model.ridge, _mixfit._SharedPrior(P, model))
-    start = (band0, jnp.zeros(2 * P + 1).at[2 * P].set(-3.0))
+    pb = _seen._Problem(reflect, obs.lab, lab_m, band, model.ridge, _mixfit._SharedPrior(P, model, priors))
+    start = (band0, _mixfit._shared_start(band0, priors, P, model))
     (held,) = _posterior.refit_held_out(spectral, start, pb, [test], rtol=1e-7)
     rows = (m.select(test).pigments, m.select(test).amounts, m.select(test).ground)
     lab_full, lab_direct = full.predict(*rows).lab, direct.predict(*rows).lab

@@ -2,6 +2,7 @@
 and what a notebook prints of its own accuracy stays within the range the docs and benchmarks give it."""
 
 import ast
+import os
 import re
 import time
 
@@ -13,6 +14,9 @@ from nbclient import NotebookClient
 
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 BUDGET_S = 60  # per notebook on a 2-core CPU (the issue's limit)
+# Beside another pytest-xdist worker a notebook has one of the two cores: notebook 06 (a fit whose 90% regions
+# refit cross-validation folds) takes 49 s alone on 2 quiet cores and 64 s beside another worker in CI.
+SHARED_BUDGET_S = 80
 
 
 def _widget_outputs(nb) -> list[dict]:
@@ -40,7 +44,7 @@ def test_notebook_runs(path, tmp_path, monkeypatch):
     # The kernel picks matplotlib's inline backend only when MPLBACKEND is unset (Agg would hide every figure).
     monkeypatch.delenv("MPLBACKEND", raising=False)
     nb = nbformat.read(path, as_version=4)
-    client = NotebookClient(nb, timeout=BUDGET_S * 2, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}})
+    client = NotebookClient(nb, timeout=SHARED_BUDGET_S * 2, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}})
     start = time.perf_counter()
     client.execute()
     elapsed = time.perf_counter() - start
@@ -50,7 +54,8 @@ def test_notebook_runs(path, tmp_path, monkeypatch):
     assert not [o for o in _widget_outputs(nb) if o.get("output_type") == "error"], "an error inside a widget"
     images = sum("image/png" in o.get("data", {}) for c in nb.cells for o in c.get("outputs", []))
     assert images >= 1, "a notebook should show its results as figures"
-    assert elapsed < BUDGET_S, f"{path.name} took {elapsed:.0f} s; slowest cells: {_slowest_cells(nb)}"
+    budget = SHARED_BUDGET_S if os.environ.get("PYTEST_XDIST_WORKER") else BUDGET_S
+    assert elapsed < budget, f"{path.name} took {elapsed:.0f} s; slowest cells: {_slowest_cells(nb)}"
     # A notebook that runs is not a notebook that shows the right thing (issue 24): read its printed figures.
     if path.stem in PRINTED_FIGURES:
         PRINTED_FIGURES[path.stem](_printed(nb))

@@ -49,7 +49,8 @@ from .._lazy import lazy
 scipy_linalg = lazy("scipy.linalg")
 scipy_sparse_linalg = lazy("scipy.sparse.linalg")
 
-__all__ = ["BandLevenbergMarquardt", "Convergence", "newton_decrement", "loss_floor", "GN_TOL", "band_covariance"]
+__all__ = ["BandLevenbergMarquardt", "Convergence", "newton_decrement", "loss_floor", "GN_TOL", "band_covariance",
+           "gauss_newton_blocks"]
 
 #: A least-squares fit is at a minimum when a full Gauss-Newton step from where it stopped would lower its loss by
 #: at most this fraction (`newton_decrement`): the gradient, measured in the fit's own scale (the curvature's),
@@ -218,6 +219,23 @@ def _quiet(**kwargs) -> None:
     del kwargs
 
 
+def gauss_newton_blocks(fn, y, n_rows: int):
+    """The Gauss-Newton curvature of a band problem `fn` (`(band, shared), None -> (per band (B, M), shared
+    (H,))`, the first `n_rows` columns of each band its rows' residuals) at `y = (band (B, Q), shared (G,))`, by
+    blocks: `(sigma2, Hbb (B, Q, Q), Hbg (B, Q, G), Hgg (G, G))`, with `sigma2` the rows' noise variance (1.4826
+    times their median absolute residual, squared: robust to a few rows fitted badly)."""
+    band, shared = y
+    Q = band.shape[1]
+    (rows, _), lin = jax.linearize(lambda b, s: fn((b, s), None), band, shared)
+    Jr, Js = jax.vmap(lin)(*_tangents(band, shared))  # (Q + G, B, M), (Q + G, H)
+    Jr, Js, rows = (np.asarray(x, np.float64) for x in (Jr, Js, rows))
+    sigma2 = float((1.4826 * np.median(np.abs(rows[:, :n_rows]))) ** 2)
+    Hbb = np.einsum("qbm,pbm->bqp", Jr[:Q], Jr[:Q])
+    Hbg = np.einsum("qbm,gbm->bqg", Jr[:Q], Jr[Q:])
+    Hgg = np.einsum("gbm,hbm->gh", Jr[Q:], Jr[Q:]) + Js[Q:] @ Js[Q:].T
+    return sigma2, Hbb, Hbg, Hgg
+
+
 def band_covariance(fn, y, n_rows: int, theta: np.ndarray, rank: int, tiny: float = 1e-9):
     r"""The Laplace covariance of a band-separable least-squares problem at `y`, restricted to the parameters
     `theta`, as its `rank` leading eigenvectors (scaled) plus the remaining diagonal, without forming the
@@ -239,13 +257,7 @@ def band_covariance(fn, y, n_rows: int, theta: np.ndarray, rank: int, tiny: floa
     band, shared = y
     B, Q = band.shape
     G = shared.shape[0]
-    (rows, _), lin = jax.linearize(lambda b, s: fn((b, s), None), band, shared)
-    Jr, Js = jax.vmap(lin)(*_tangents(band, shared))  # (Q + G, B, M), (Q + G, H)
-    Jr, Js, rows = (np.asarray(x, np.float64) for x in (Jr, Js, rows))
-    sigma2 = float((1.4826 * np.median(np.abs(rows[:, :n_rows]))) ** 2)
-    Hbb = np.einsum("qbm,pbm->bqp", Jr[:Q], Jr[:Q])
-    Hbg = np.einsum("qbm,gbm->bqg", Jr[:Q], Jr[Q:])
-    Hgg = np.einsum("gbm,hbm->gh", Jr[Q:], Jr[Q:]) + Js[Q:] @ Js[Q:].T
+    sigma2, Hbb, Hbg, Hgg = gauss_newton_blocks(fn, y, n_rows)
     delta = tiny * max(float(np.max(np.diagonal(Hbb, axis1=1, axis2=2), initial=0.0)),
                        float(np.max(np.diag(Hgg), initial=0.0)), 1e-30)  # fmt: skip
     Dinv = np.linalg.inv(Hbb + delta * np.eye(Q))  # (B, Q, Q): small blocks

@@ -44,7 +44,7 @@ import optimistix as optx
 from jaxtyping import Array
 
 from .. import _regions, colorimetry
-from ._bandlsq import BandLevenbergMarquardt, _tangents
+from ._bandlsq import BandLevenbergMarquardt, _tangents, gauss_newton_blocks
 from ._seen import _Problem
 
 __all__ = ["laplace", "refit_held_out", "calibrate_scale", "shrink_per_pigment", "owners", "scaled"]
@@ -94,20 +94,15 @@ def laplace(fn, y, n_rows: int, P: int, gamma: bool, rank: int = RANK):
     band, shared = y
     B, Q = band.shape
     G = shared.shape[0]
-    (rows, _), lin = jax.linearize(lambda b, s: fn((b, s), None), band, shared)
-    Jr, Js = jax.vmap(lin)(*_tangents(band, shared))  # (Q + G, B, M), (Q + G, H)
-    Jr, Js, rows = (np.asarray(x, np.float64) for x in (Jr, Js, rows))
-    sigma2 = float((1.4826 * np.median(np.abs(rows[:, :n_rows]))) ** 2)  # robust: a few rows fitted badly
+    sigma2, Hbb, Hbg, Hgg = gauss_newton_blocks(fn, y, n_rows)
     n = B * Q + G
     H = np.zeros((n, n))
-    Hbb = np.einsum("qbm,pbm->bqp", Jr[:Q], Jr[:Q])
-    Hbg = np.einsum("qbm,gbm->bqg", Jr[:Q], Jr[Q:])
     for b in range(B):
         sl = slice(b * Q, (b + 1) * Q)
         H[sl, sl] = Hbb[b]
         H[sl, B * Q :] = Hbg[b]
         H[B * Q :, sl] = Hbg[b].T
-    H[B * Q :, B * Q :] = np.einsum("gbm,hbm->gh", Jr[Q:], Jr[Q:]) + Js[Q:] @ Js[Q:].T
+    H[B * Q :, B * Q :] = Hgg
     lam, V = np.linalg.eigh(0.5 * (H + H.T))
     lam = np.maximum(lam, 1e-9 * max(lam.max(), 1e-30))
     idx = _theta_index(B, P, gamma)

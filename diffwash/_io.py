@@ -49,7 +49,7 @@ __all__ = [
     "read_json", "write_json", "write_text", "atomic_path", "atomic_paths", "atomic_folder", "read_image",
     "write_png", "write_image", "save_figure", "image_format_for", "to_uint", "finite_number", "check_float32",
     "refuse_overwriting_inputs", "max_image_pixels", "image_pixel_limit", "MAX_IMAGE_PIXELS", "IMAGE_FORMATS",
-    "FLOAT32_MAX", "check_input_file", "open_input", "max_file_bytes", "MAX_FILE_BYTES", "FILE_BYTES_ENV",
+    "FLOAT32_MAX", "check_input_file", "open_input", "env_limit", "max_file_bytes", "MAX_FILE_BYTES", "FILE_BYTES_ENV",
 ]  # fmt: skip
 
 #: The largest magnitude float32 holds; diffwash computes in float32, so larger numbers are refused.
@@ -72,18 +72,24 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
 
 
-def max_file_bytes() -> int:
-    """The largest input file read, in bytes: `$DIFFWASH_MAX_FILE_BYTES`, else `MAX_FILE_BYTES`."""
-    env = os.environ.get(FILE_BYTES_ENV, "").strip()
+def env_limit(name: str, default: int, unit: str) -> int:
+    """A size limit the environment variable `name` may set (a whole number >= 1 of `unit`), else `default`;
+    anything else there is a one-line `DiffwashError` naming the variable."""
+    env = os.environ.get(name, "").strip()
     if not env:
-        return MAX_FILE_BYTES
+        return default
     try:
         n = float(env)
     except ValueError:
         n = math.nan
     if not (math.isfinite(n) and n >= 1 and n.is_integer()):
-        raise DiffwashError(f"must be a whole number of bytes >= 1, got {env!r}", field=FILE_BYTES_ENV)
+        raise DiffwashError(f"must be a whole number of {unit} >= 1, got {env!r}", field=name)
     return int(n)
+
+
+def max_file_bytes() -> int:
+    """The largest input file read, in bytes: `$DIFFWASH_MAX_FILE_BYTES`, else `MAX_FILE_BYTES`."""
+    return env_limit(FILE_BYTES_ENV, MAX_FILE_BYTES, "bytes")
 
 
 #: What a file that is not a regular file is, by its `stat` mode test.

@@ -59,7 +59,7 @@ import numpy as np
 
 from . import colorimetry, spectral
 from ._errors import DiffwashError
-from ._io import check_float32, open_input
+from ._io import check_float32, env_limit, open_input
 
 __all__ = [
     "Measurements", "Queries", "read_measurements", "read_queries", "parse_mixture", "parse_stack", "format_stack",
@@ -303,16 +303,7 @@ def refuse_colliding_names(names: Any, lines: Any, path: Any) -> None:
 
 def max_table_rows() -> int:
     """The most rows a measurement table may have: `$DIFFWASH_MAX_TABLE_ROWS`, else `MAX_TABLE_ROWS`."""
-    env = os.environ.get(ROWS_ENV, "").strip()
-    if not env:
-        return MAX_TABLE_ROWS
-    try:
-        n = float(env)
-    except ValueError:
-        n = math.nan
-    if not (math.isfinite(n) and n >= 1 and n.is_integer()):
-        raise DiffwashError(f"must be a whole number of rows >= 1, got {env!r}", field=ROWS_ENV)
-    return int(n)
+    return env_limit(ROWS_ENV, MAX_TABLE_ROWS, "rows")
 
 
 def too_many_rows(limit: int, path: Any, line: int) -> DiffwashError:

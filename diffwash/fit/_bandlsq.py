@@ -224,16 +224,24 @@ def gauss_newton_blocks(fn, y, n_rows: int):
     (H,))`, the first `n_rows` columns of each band its rows' residuals) at `y = (band (B, Q), shared (G,))`, by
     blocks: `(sigma2, Hbb (B, Q, Q), Hbg (B, Q, G), Hgg (G, G))`, with `sigma2` the rows' noise variance (1.4826
     times their median absolute residual, squared: robust to a few rows fitted badly)."""
-    band, shared = y
-    Q = band.shape[1]
-    (rows, _), lin = jax.linearize(lambda b, s: fn((b, s), None), band, shared)
-    Jr, Js = jax.vmap(lin)(*_tangents(band, shared))  # (Q + G, B, M), (Q + G, H)
-    Jr, Js, rows = (np.asarray(x, np.float64) for x in (Jr, Js, rows))
+    Q = y[0].shape[1]
+    Jr, Js, rows = (np.asarray(x, np.float64) for x in _jacobian(fn, y))
     sigma2 = float((1.4826 * np.median(np.abs(rows[:, :n_rows]))) ** 2)
-    Hbb = np.einsum("qbm,pbm->bqp", Jr[:Q], Jr[:Q])
-    Hbg = np.einsum("qbm,gbm->bqg", Jr[:Q], Jr[Q:])
-    Hgg = np.einsum("gbm,hbm->gh", Jr[Q:], Jr[Q:]) + Js[Q:] @ Js[Q:].T
+    Jb, Jg = Jr[:Q].transpose(1, 0, 2), Jr[Q:].transpose(1, 0, 2)  # (B, Q, M), (B, G, M): batched products
+    Hbb = Jb @ Jb.transpose(0, 2, 1)
+    Hbg = Jb @ Jg.transpose(0, 2, 1)
+    Hgg = np.sum(Jg @ Jg.transpose(0, 2, 1), axis=0) + Js[Q:] @ Js[Q:].T
     return sigma2, Hbb, Hbg, Hgg
+
+
+@eqx.filter_jit
+def _jacobian(fn, y):
+    """The Jacobian of a band problem by its `Q + G` forward-mode products (`_tangents`), compiled: `(per band
+    (Q + G, B, M), shared (Q + G, H), rows (B, M))`."""
+    band, shared = y
+    (rows, _), lin = jax.linearize(lambda b, s: fn((b, s), None), band, shared)
+    Jr, Js = jax.vmap(lin)(*_tangents(band, shared))
+    return Jr, Js, rows
 
 
 def band_covariance(fn, y, n_rows: int, theta: np.ndarray, rank: int, tiny: float = 1e-9):

@@ -34,17 +34,14 @@ prediction error via approximate leave-one-out cross-validation", JRSS B 82 (202
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
-from jaxtyping import Array
 
 from .. import _regions, colorimetry
-from ._bandlsq import BandLevenbergMarquardt, _tangents, gauss_newton_blocks
+from . import _seen
+from ._bandlsq import BandLevenbergMarquardt, gauss_newton_blocks
 from ._seen import _Problem
 
 __all__ = ["laplace", "refit_held_out", "calibrate_scale", "shrink_per_pigment", "owners", "scaled"]
@@ -54,29 +51,6 @@ RANK = 24
 #: A fold's refit: at most this many steps of the log-reflectance stage, and of the CIEDE2000 refinement.
 FOLD_STEPS = 40
 FOLD_REFINE_STEPS = 8
-
-
-@eqx.filter_jit
-def _weighted_normal_equations(pb: _Problem, y, w):
-    """`_seen._normal_equations` with the rows' colour residuals weighed by `w` (N,); also the loss."""
-    band, shared = y
-    B, Q = band.shape
-    R, reflect_jvp = jax.linearize(pb.reflect, band, shared)
-    dR = jax.vmap(reflect_jvp)(*_tangents(band, shared))
-    row = lambda Rn, ln: colorimetry.delta_e_2000_residuals(ln, pb.lab_of(Rn))  # noqa: E731
-    E = jax.vmap(jax.jacfwd(row))(R, pb.lab_target) * w[:, None, None]
-    r = row(R, pb.lab_target) * w[:, None]
-    rb, rg = pb.ridge * (band - pb.band0), pb.shared_prior(shared)
-    Jb = jnp.einsum("nib,qnb->nibq", E, dR[:Q]).reshape(-1, B * Q)
-    Jg = jnp.einsum("nib,gnb->nig", E, dR[Q:]).reshape(Jb.shape[0], -1)
-    Jp = jax.jacfwd(pb.shared_prior)(shared)
-    J = jnp.concatenate([Jb, Jg], axis=1)
-    H = J.T @ J
-    H = H.at[: B * Q, : B * Q].add(pb.ridge**2 * jnp.eye(B * Q, dtype=H.dtype))
-    H = H.at[B * Q :, B * Q :].add(Jp.T @ Jp)
-    g = J.T @ r.ravel() + jnp.concatenate([pb.ridge * rb.ravel(), Jp.T @ rg])
-    loss = jnp.sum(r * r) + jnp.sum(rb * rb) + jnp.sum(rg * rg)
-    return H, g, loss, r
 
 
 def _theta_index(B: int, P: int, gamma: bool) -> np.ndarray:
@@ -117,42 +91,6 @@ def laplace(fn, y, n_rows: int, P: int, gamma: bool, rank: int = RANK):
     return F, diag, float(np.sqrt(sigma2))
 
 
-class _WeightedRows(eqx.Module):
-    """The spectral stage's residuals with its rows' columns (the first `len(w)` of each band) weighed by `w`:
-    a fold's problem, of the same shapes (and the same compiled solver) for every fold."""
-
-    fn: Callable
-    w: Array
-
-    def __call__(self, y, args):
-        per_band, shared = self.fn(y, args)
-        n = self.w.shape[0]
-        return jnp.concatenate([per_band[:, :n] * self.w, per_band[:, n:]], axis=1), shared
-
-
-def _weighted_refine(pb: _Problem, y, w, steps: int, rtol: float):
-    """`_seen.refine_in_de2000` of the rows weighed by `w`: Levenberg-Marquardt on the dense normal equations
-    (Marquardt's scaling), at most `steps` accepted steps, stopping when one lowers the loss by < `rtol`."""
-    mu = 1e-3
-    H, g, f, _ = _weighted_normal_equations(pb, y, w)
-    for _ in range(steps):
-        while True:
-            d = jnp.diagonal(H)
-            delta = jnp.linalg.solve(H + mu * jnp.diag(d + 1e-9 * jnp.mean(d)), -g)
-            cand = (y[0] + delta[: y[0].size].reshape(y[0].shape), y[1] + delta[y[0].size :])
-            Hc, gc, fc, _ = _weighted_normal_equations(pb, cand, w)
-            if float(fc) < float(f) or mu > 1e12:
-                break
-            mu *= 4.0
-        if not float(fc) < float(f):
-            break
-        done = float(f) - float(fc) <= rtol * float(f)
-        y, H, g, f, mu = cand, Hc, gc, fc, max(mu / 3.0, 1e-9)
-        if done:
-            break
-    return y
-
-
 def refit_held_out(spectral, start, pb: _Problem, folds: list[np.ndarray], *, rtol: float,
                    steps: int = FOLD_STEPS, refine_steps: int = FOLD_REFINE_STEPS) -> list[np.ndarray]:  # fmt: skip
     """Each fold's rows' CIELAB as predicted by the fit refitted without them, in fold order.
@@ -161,19 +99,21 @@ def refit_held_out(spectral, start, pb: _Problem, folds: list[np.ndarray], *, rt
     fix: every fold keeps them), its rows weighed 0: the log-reflectance stage `spectral`
     (`BandLevenbergMarquardt`, at most `steps` steps), then the CIEDE2000 refinement of `pb` (at most
     `refine_steps`) with its ridge towards that fold's own log-reflectance spectra. Nothing of the full fit,
-    which saw the fold's rows, enters a fold; the folds share one compiled program."""
-    out = []
+    which saw the fold's rows, enters a fold; the folds and the fit share its compiled programs (the rows' weights
+    are their argument)."""
     solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
-    for test in folds:
+
+    def one(test):
         test = np.asarray(test)
         w = jnp.asarray(~test, start[0].dtype)
-        sol = optx.least_squares(_WeightedRows(spectral, w), solver, start, max_steps=steps, throw=False)
-        y = sol.value
-        pbf = eqx.tree_at(lambda p: p.band0, pb, y[0])
-        y = _weighted_refine(pbf, y, w, refine_steps, max(rtol, 1e-5))
-        lab = np.asarray(pb.lab_of(pb.reflect(*y)), np.float64)
-        out.append(lab[test])
-    return out
+        fold = eqx.tree_at(lambda f: f.w, spectral, w, is_leaf=lambda x: x is None)
+        sol = optx.least_squares(fold, solver, start, max_steps=steps, throw=False)
+        y, _, _ = _seen.refine_in_de2000(pb.reflect, pb.lab_of, pb.lab_target, sol.value, ridge=pb.ridge,
+                                         shared_prior=pb.shared_prior, max_steps=refine_steps,
+                                         rtol=max(rtol, 1e-5), weights=w)  # fmt: skip
+        return np.asarray(pb.lab_of(pb.reflect(*y)), np.float64)[test]
+
+    return [one(t) for t in folds]
 
 
 def calibrate_scale(lab_true: np.ndarray, lab_pred: np.ndarray, spread: np.ndarray, level: float = _regions.LEVEL) -> float:

@@ -48,11 +48,16 @@ class _Problem(eqx.Module):
     band0: Array
     ridge: float = eqx.field(static=True)
     shared_prior: Callable[[Array], Array]
+    w: Array | None = None  # each row's weight (N,) on its colour residuals; None: 1
+
+    def weigh(self, r):
+        """The rows' colour residuals (N, ...) weighed by `w`."""
+        return r if self.w is None else r * self.w.reshape(self.w.shape + (1,) * (r.ndim - 1))
 
     def residuals(self, band, shared):
         R = self.reflect(band, shared)
         r = colorimetry.delta_e_2000_residuals(self.lab_target, self.lab_of(R))
-        return r, self.ridge * (band - self.band0), self.shared_prior(shared)
+        return self.weigh(r), self.ridge * (band - self.band0), self.shared_prior(shared)
 
 
 @eqx.filter_jit
@@ -70,8 +75,8 @@ def _jacobians(pb: _Problem, y):
     R, reflect_jvp = jax.linearize(pb.reflect, band, shared)  # R once; then Q + G tangents through its linearisation
     dR = jax.vmap(reflect_jvp)(*_tangents(band, shared))  # (Q + G, N, B)
     row = lambda Rn, ln: colorimetry.delta_e_2000_residuals(ln, lab_of(Rn))  # noqa: E731
-    E = jax.vmap(jax.jacfwd(row))(R, pb.lab_target)  # (N, 3, B)
-    r, rb, rg = row(R, pb.lab_target), ridge * (band - pb.band0), pb.shared_prior(shared)
+    E = pb.weigh(jax.vmap(jax.jacfwd(row))(R, pb.lab_target))  # (N, 3, B)
+    r, rb, rg = pb.weigh(row(R, pb.lab_target)), ridge * (band - pb.band0), pb.shared_prior(shared)
     Jb = jnp.einsum("nib,qnb->nibq", E, dR[:Q]).reshape(-1, B * Q)
     Jg = jnp.einsum("nib,gnb->nig", E, dR[Q:]).reshape(Jb.shape[0], -1)
     Jp = jax.jacfwd(pb.shared_prior)(shared)
@@ -130,6 +135,7 @@ def refine_in_de2000(
     shared_prior: Callable[[Array], Array],
     max_steps: int = 100,
     rtol: float = 1e-5,
+    weights: Array | None = None,
 ) -> tuple[tuple[Array, Array], bool, int]:
     """Levenberg-Marquardt on CIEDE2000 residuals from a spectral fit `y0 = (band, shared)` (module docstring).
 
@@ -143,13 +149,16 @@ def refine_in_de2000(
     - `shared_prior`: residuals of the shared parameters' prior.
     - `max_steps`, `rtol`: at most this many linearisations; stop when an accepted step lowers the loss by
       less than `rtol` relative.
+    - `weights`: each row's weight on its colour residuals, shape (N,) (None: 1; 0 leaves a row out, as a
+      cross-validation fold does: the fit and its folds then share one compiled program).
 
     **Returns:** `((band, shared), convergence, steps)`: the `Convergence` (true as a bool when converged: the
     loss stopped falling, or, out of steps, a Gauss-Newton step would lower it by at most `GN_TOL`; it says
     how far off a minimum the fit ended).
     """
     band0 = y0[0]
-    pb = _Problem(reflect, lab_of, jnp.asarray(lab_target), band0, float(ridge), shared_prior)
+    w = jnp.ones(lab_target.shape[0], band0.dtype) if weights is None else jnp.asarray(weights, band0.dtype)
+    pb = _Problem(reflect, lab_of, jnp.asarray(lab_target), band0, float(ridge), shared_prior, w)
     loss = lambda y: _loss(pb, y)  # noqa: E731
     rows = 3 * lab_target.shape[0] < band0.size  # few rows, many band parameters: never form the square matrix
     state = lambda y: _jacobians(pb, y) if rows else _normal_equations(pb, y)  # noqa: E731

@@ -1,9 +1,15 @@
 """Tests run in float64 (the library's default is float32) with warnings as errors.
 
-Each test process (each pytest-xdist worker) keeps JAX's compiled programs in a folder of its own, for its
-tests and the `diffwash` commands they run (one worker runs one test at a time, so no two processes write
+Each test process (each pytest-xdist worker) gives the `diffwash` commands its tests run as subprocesses a
+folder of its own for JAX's compiled programs (one worker runs one test at a time, so no two processes write
 it at once); it is removed when the process's test session ends. Tests that time a first run (the demo's)
 or state what a cold start costs (the notebooks) pass their own `DIFFWASH_CACHE_DIR`.
+
+The test process itself keeps JAX's persistent cache off, also for the commands it runs in-process
+(`diffwash.cli.main`): twice a pytest-xdist worker that had run several hundred tests died of a
+segmentation fault inside JAX 0.10.2's cache writer (`compilation_cache.put_executable_and_time`, serialising
+a mixture fit's program), in two CI runs; neither run of the same tests alone, nor 12 fresh processes of the
+same fit, reproduced it. Within one process JAX's in-memory caches already find every program compiled.
 """
 
 import os
@@ -22,9 +28,9 @@ import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
-from diffwash import enable_compilation_cache  # noqa: E402
+import diffwash._cache  # noqa: E402
 
-enable_compilation_cache()
+diffwash._cache.enable_compilation_cache = lambda: None  # what `diffwash.enable_compilation_cache` resolves to
 
 import hypothesis  # noqa: E402
 import pytest  # noqa: E402

@@ -54,8 +54,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from diffwash import colorimetry, measurements, spectral  # noqa: E402
-from diffwash.fit import fit_mixtures  # noqa: E402
+from diffwash import _regions, colorimetry, library, measurements, spectral  # noqa: E402
+from diffwash.fit import _posterior, fit_mixtures  # noqa: E402
 
 NTU = ROOT / "data" / "ntu-wpsm" / "ntu-spectral-train.csv"
 WL = np.arange(400, 781, 5.0)
@@ -233,11 +233,14 @@ def score(table_rows, wl, queries: dict, amount_of, label: str) -> None:
     print(f"\n{label}: fit of {len(m)} rows, {len(m.names)} paints, {len(wl)} bands: {wall:.1f} s ({cpu:.1f} s CPU), "
           f"converged {fit.converged}, mean dE2000 of its rows {fit.summary()['mean_de2000']:.2f}; exponents "
           f"{gam.min():.3g}-{gam.max():.3g}; smallest mean S {S.mean(axis=1).min():.3g}\n", flush=True)  # fmt: skip
-    print("| ground | held-out rows | diffwash | one-constant K/S | geometric mean | Mixbox |\n|---|---|---|---|---|---|")
+    print("| ground | held-out rows | diffwash | held by its 90% regions (median radius) | model error holding 90% "
+          "| one-constant K/S | geometric mean | Mixbox |\n|---|---|---|---|---|---|---|---|")
     for g, qs in queries.items():
         single = {p: v for p, a, gg, v in table_rows if gg == g and a != "0"}
         truth = np.asarray(obs.lab(np.array([v for _, _, v in qs])))
-        pred = fit.library.predict(["+".join(p) for p, _, _ in qs], [amount_of(f) for _, f, _ in qs], [g] * len(qs))
+        rows = (["+".join(p) for p, _, _ in qs], [amount_of(f) for _, f, _ in qs], [g] * len(qs))
+        pred = fit.library.predict(*rows)
+        held, s90 = _coverage(fit.library, rows, truth, pred)
         labs = {"diffwash": pred.lab}
         for name, fn in (("one", one_constant), ("geo", geometric_mean)):
             labs[name] = np.asarray(obs.lab(np.array([fn(single, p, f) for p, f, _ in qs])))
@@ -245,8 +248,23 @@ def score(table_rows, wl, queries: dict, amount_of, label: str) -> None:
         de = {k: float(np.mean(np.asarray(colorimetry.delta_e_2000(v, truth)))) for k, v in labs.items()}
         if mb is not None:
             de["mixbox"] = float(np.mean(np.asarray(colorimetry.delta_e_2000(mb, truth))))
-        print(f"| {g} | {len(qs)} | {de['diffwash']:.2f} | {de['one']:.2f} | {de['geo']:.2f} | "
+        print(f"| {g} | {len(qs)} | {de['diffwash']:.2f} | {held} | {s90:.2f} | {de['one']:.2f} | {de['geo']:.2f} | "
               f"{de.get('mixbox', float('nan')):.2f} |", flush=True)  # fmt: skip
+
+
+def _coverage(lib, rows, truth, pred) -> tuple[str, float]:
+    """The share of held-out rows inside their 90% regions (and the regions' median radius), and the model error of
+    the rows' kind (CIELAB units per axis) that would make them hold 90% (`_posterior.calibrate_scale`): what a
+    prior for a table that mixes nothing should be (`_priors.UNMIXED_PRIOR`)."""
+    q = library._as_queries(*rows)
+    A, G = lib.layer_amounts(q.pigments, q.amounts, q.layers), lib.ground_matrix(q.ground)
+    spread = _regions.lab_draws(lib.posterior, lib.palette, A, G, lib.k2, lib.observation.lab)
+    s90 = _posterior.calibrate_scale(truth, pred.lab, spread)
+    if pred.de2000_90 is None or not np.isfinite(pred.de2000_90).any():
+        return "no regions", s90
+    de = np.asarray(colorimetry.delta_e_2000(pred.lab, truth))
+    ok = np.isfinite(pred.de2000_90)
+    return f"{100 * np.mean(de[ok] <= pred.de2000_90[ok]):.1f}% ({np.median(pred.de2000_90[ok]):.1f})", s90
 
 
 def generated(seeds, n_paints: int) -> None:

@@ -106,3 +106,25 @@ def test_tables_at_several_amounts_or_over_black_get_no_prior():
     p = _priors.table_priors(A, np.stack([light] * 4))
     assert p.gamma_fixed == (1,) and p.scatter_weak == (1,)
     assert _priors.table_priors(A, np.stack([light] * 4), on=False) == _priors.TablePriors(gamma_free=(0, 1))
+
+
+def test_a_table_that_mixes_nothing_gives_mixtures_regions_from_the_prior_and_says_so(case):
+    """Issue 20: no fold of a table without mixtures can measure how its mixtures err; their model error is the
+    prior's (`_priors.UNMIXED_PRIOR`, the NTU paints'), named as such, and every predicted mixture gets a region."""
+    _, fit, held, _ = case
+    unc = fit.library.fit["uncertainty"]
+    assert unc["model_error"]["unmixed"] == _priors.UNMIXED_PRIOR and unc["unmixed_from"].startswith("the prior")
+    pred = fit.library.predict(["+".join(p) for p, _ in held], ["+".join(f"{c:.6f}" for c in f) for _, f in held],
+                               ["white"] * len(held))  # fmt: skip
+    assert pred.de2000_90 is not None and np.all(np.isfinite(pred.de2000_90)) and np.all(pred.de2000_90 > 5)
+    single = fit.library.predict(["Q1"], ["1"], ["white"])
+    assert single.de2000_90[0] < np.min(pred.de2000_90)  # a measured paint alone keeps its own, small region
+
+
+def test_the_command_line_says_where_the_mixtures_model_error_came_from(case, tmp_path, capsys):
+    from diffwash.cli import main
+
+    m = case[0]
+    assert main(["fit-swatch", "--table", str(m.path), "-o", str(tmp_path / "lib.json")]) == 0
+    out = capsys.readouterr().out
+    assert f"unmixed {_priors.UNMIXED_PRIOR:.2f}" in out and "unmixed: the prior (the table holds no mixture)" in out

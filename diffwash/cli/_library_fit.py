@@ -74,6 +74,8 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
     if unc is not None:
         errors = ", ".join(f"{k} {v:.2f}" for k, v in unc["model_error"].items())
         print(f"  90% regions: model error (CIELAB units per axis) {errors}")
+        if str(unc.get("unmixed_from", "")).startswith("the prior"):
+            print(f"    unmixed: {unc['unmixed_from']}")
         for line in diffwash.fit.uncertainty_lines(unc["pigments"]):
             print(line)
     if not fit.converged and not args.allow_unconverged:

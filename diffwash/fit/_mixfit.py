@@ -607,7 +607,7 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
     mixture of one paint (only where the table has a paint it never mixed: else no row can be of that kind), the
     largest of the folds' (a paint's mixtures are mispredicted together, and paints differ: the error that holds
     90% of each left-out paint's mixtures); each fold refitted from the fit's start by `refit(folds)` -> each
-    fold's held-out CIELAB."""
+    fold's held-out CIELAB. A table that mixes nothing takes `unmixed` from `_priors.UNMIXED_PRIOR`."""
     scale, rows, how = {}, {}, {}
     for k in ("single", "seen"):
         sel = kind == k
@@ -627,6 +627,10 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
         else:  # a fold's rows are one paint's: they fail together; hold 90% of each paint's, the worst included
             scale[k] = max(_posterior.calibrate_scale(lab_m[t], h, spread[:, t]) for t, h in zip(folds, held))
         how[f"{k}_from"] = f"{what} cross-validation, {len(folds)} folds refitted from the fit's start"
+    if not pairs(m):  # a table that mixes nothing: every mixture holds a paint never mixed, and no fold can tell
+        scale["unmixed"] = _priors.UNMIXED_PRIOR
+        how["unmixed_from"] = ("the prior (the table holds no mixture): the NTU watercolours' model error with each "
+                               "paint measured once; measure a few mixtures to have the table's own")  # fmt: skip
     return scale, rows, how
 
 

@@ -99,6 +99,11 @@ LEVEL_POP = 0.63
 #: leave free.
 LEVEL = 0.0
 LEVEL_SPREAD = 1.5
+#: The model error (CIELAB units per axis) of a mixture predicted from a table that holds no mixture at all, where
+#: no fold of the table can measure it (`diffwash.fit._mixfit._model_errors`): the NTU watercolours' with each paint
+#: once at 0.06 mL (13 rows), the error that makes the 90% regions hold 90% of their 198 mixtures at 0.06 mL (6.87;
+#: 7.03 for the 216 at 0.03 mL, 6.52 for the 186 at 0.12 mL: `python benchmarks/bench_oneamount.py --only ntu`).
+UNMIXED_PRIOR = 6.9
 #: The log-reflectance scale the one-amount priors are weighed against (`TablePriors`), as the population priors
 #: are (`LOG_NOISE`). Two rows of a paint fix its two parameters per band almost exactly, so the fit's residuals
 #: cannot tell how noisy the rows are; this says how far they are trusted against the priors. Weighed against 0.01

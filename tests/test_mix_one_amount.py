@@ -128,3 +128,11 @@ def test_the_command_line_says_where_the_mixtures_model_error_came_from(case, tm
     assert main(["fit-swatch", "--table", str(m.path), "-o", str(tmp_path / "lib.json")]) == 0
     out = capsys.readouterr().out
     assert f"unmixed {_priors.UNMIXED_PRIOR:.2f}" in out and "unmixed: the prior (the table holds no mixture)" in out
+
+
+def test_a_fit_says_each_stage_as_it_begins(case):
+    """A large table's fit takes minutes: `progress` hears each stage (and each cross-validation fold) in order."""
+    m = case[0]
+    heard = []
+    fit_mixtures(m, progress=heard.append)
+    assert heard[:3] == ["log-reflectance fit", "CIEDE2000 refinement", "posterior"], heard

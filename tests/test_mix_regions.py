@@ -206,7 +206,9 @@ def test_a_fold_is_refitted_from_the_fits_start_not_pulled_towards_the_full_fit(
     lab_m = jnp.asarray(_mixfit.measured_lab(m, obs))
     pb = _seen._Problem(reflect, obs.lab, lab_m, band, model.ridge, _mixfit._SharedPrior(P, model, priors))
     start = (band0, _mixfit._shared_start(band0, priors, P, model))
-    (held,) = _posterior.refit_held_out(spectral, start, pb, [test], rtol=1e-7)
+    calls = []
+    (held,) = _posterior.refit_held_out(spectral, start, pb, [test], rtol=1e-7, progress=lambda i, n: calls.append((i, n)))
+    assert calls == [(1, 1)]  # each fold is announced as it begins
     rows = (m.select(test).pigments, m.select(test).amounts, m.select(test).ground)
     lab_full, lab_direct = full.predict(*rows).lab, direct.predict(*rows).lab
     off = lambda a, b: float(np.mean(_dE(a, b)))  # noqa: E731

@@ -7,6 +7,7 @@ every other table goes through `diffwash.fit.fit_mixtures`.
 from __future__ import annotations
 
 import csv
+import sys
 import time
 from pathlib import Path
 
@@ -58,7 +59,7 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
                             field="--pair-terms")  # fmt: skip
     model = diffwash.fit.MixModel(weights=args.mixing == "weights", surface=args.surface == "saunderson",
                      loss="spectral" if args.refine == "none" else "de2000", pairs=args.pair_terms != "off")
-    fit = diffwash.fit.fit_mixtures(m, model=model, max_steps=args.max_steps)
+    fit = diffwash.fit.fit_mixtures(m, model=model, max_steps=args.max_steps, progress=_stage_printer(t0))
     kind = f"{len(m.wavelengths)} bands" if m.spectral else "sRGB, fitted as smooth spectra"
     s = fit.summary()
     stacks = f"{int(np.sum(m.is_stack))} glaze stacks; " if np.any(m.is_stack) else ""
@@ -89,3 +90,11 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
     print(f"wrote {out}" + (f" and {report}" if report is not None else ""))
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0
+
+
+def _stage_printer(t0: float):
+    """Where standard error is a terminal: a `progress` callback that says each stage of the fit as it begins,
+    with the time so far (a large table's fit takes minutes); elsewhere None (logs keep only the summary)."""
+    if not sys.stderr.isatty():
+        return None
+    return lambda stage: print(f"  {stage}... ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)

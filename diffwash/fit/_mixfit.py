@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -320,7 +321,8 @@ def _shared_start(band0, priors: _priors.TablePriors, P: int, model: MixModel):
     return jnp.asarray(np.concatenate([log_gamma0, np.zeros(P), [-3.0], levels]), band0.dtype)
 
 
-def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol: float, obs: spectral.Observation):
+def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol: float, obs: spectral.Observation,
+                  say: Callable[[str], None] = lambda msg: None):  # fmt: skip
     A, G = _dense(m, names)
     P = len(names)
     dtype = jnp.zeros(()).dtype
@@ -341,6 +343,7 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
         ok = Convergence(converged=bool(sol.result == optx.RESULTS.successful), steps=steps, stage="log-reflectance fit")
     y = _pin_amount_laws(y, priors, P, model)
     if model.loss == "de2000":
+        say("CIEDE2000 refinement")
         y, ok, more = _seen.refine_in_de2000(reflect, obs.lab, obs.lab(Y), y, ridge=model.ridge,
                                              shared_prior=_SharedPrior(P, model, priors), max_steps=max_steps,
                                              rtol=max(rtol, 1e-5))  # fmt: skip
@@ -492,7 +495,7 @@ def _flat_ground(linear_rgb: np.ndarray, obs: spectral.Observation) -> np.ndarra
 
 def fit_mixtures(
     m: Measurements, *, model: MixModel = MixModel(), max_steps: int = 400, rtol: float | None = None,
-    posterior: bool = True, **observe: Any,
+    posterior: bool = True, progress: Callable[[str], None] | None = None, **observe: Any,
 ) -> MixtureFit:
     r"""Fit every pigment of a measurement table jointly, single paints and mixtures (module docstring).
 
@@ -504,18 +507,21 @@ def fit_mixtures(
     - `rtol`: the solver's tolerance (default: 1e-4 in float32, 1e-7 in float64).
     - `posterior`: spectral tables fitted in CIEDE2000: keep the parameters' Laplace posterior and the model
       error measured on the table (`diffwash.fit._posterior`), so that predictions carry `de2000_90`.
+    - `progress`: called with the name of each stage as it begins (a fit of a large table takes minutes).
     - `observe`: `illuminant`, `observer`, `method` of the `diffwash.spectral.Observation`
       (spectral tables; RGB tables are seen as sRGB: D65, CIE 1931 2-degree).
 
     **Returns:** a `MixtureFit` (its `library` ready to save and predict with).
     """
     t0 = time.perf_counter()
+    say = progress if progress is not None else (lambda msg: None)
     names = m.names
     if rtol is None:  # RGB: see RGB_RTOL
         rtol = 1e-7 if jnp.zeros(()).dtype == jnp.float64 else (1e-4 if m.spectral else RGB_RTOL)
     if m.spectral:
         obs = m.observation(**observe)
-        K, S, gam, w, k2, ok, steps = _fit_spectral(m, names, model, max_steps, rtol, obs)
+        say("log-reflectance fit")
+        K, S, gam, w, k2, ok, steps = _fit_spectral(m, names, model, max_steps, rtol, obs, say)
         grounds = dict(m.grounds)
     else:
         (K, S, gam, w, k2, ok, steps), grounds, obs = _fit_rgb(m, names, model, max_steps, rtol)
@@ -526,6 +532,8 @@ def fit_mixtures(
     if m.spectral and model.pairs:  # from the rows of one layer (a stack's layers are not fitted pair terms)
         A, G = _dense(m, list(names))
         one, A1 = _one_layer(A)
+        if pairs(m):
+            say(f"pair terms ({len(pairs(m))} pairs)")
         terms, pairs_ok = _pairs.fit_pair_terms(palette, A1, G[one], measured_lab(m, obs)[one], obs.lab, k2,
                                                 ridge=model.pair_ridge)  # fmt: skip
         palette = eqx.tree_at(lambda p: p.pairs, palette, terms, is_leaf=lambda x: x is None)
@@ -542,13 +550,15 @@ def fit_mixtures(
         record["priors"] = priors.describe(list(names), spectral=m.spectral, gamma=model.gamma)
     post = None
     if posterior and m.spectral and model.loss == "de2000":
-        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib)
+        say("posterior")
+        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib, say)
         record["uncertainty"] = post.record
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=record, posterior=post)
     return MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model, tuple(stages))
 
 
-def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library):
+def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library,
+                        say: Callable[[str], None] = lambda msg: None):  # fmt: skip
     """The fit's `_regions.Posterior`: Laplace covariance from the spectral stage's problem, each pigment's block
     bounded by its own rows, and the model error of each kind of row (`_model_errors`)."""
     P = len(names)
@@ -590,8 +600,9 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge),
                         _SharedPrior(P, model, priors), jnp.ones(len(m), dtype))  # fmt: skip
     start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
-    refit = lambda folds: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
-                                                    rtol=1e-7 if dtype == jnp.float64 else 1e-4)  # fmt: skip
+    refit = lambda folds, what: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
+                                                          rtol=1e-7 if dtype == jnp.float64 else 1e-4,
+                                                          progress=lambda i, n: say(f"{what} fold {i}/{n}"))  # fmt: skip
     scale, rows, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit)
     record = {"noise_log_reflectance": round(sigma, 6),
               "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
@@ -606,7 +617,7 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
     for `unseen`, of the held-out rows of leave-pairs-out folds, and for `unmixed`, of folds that hold out every
     mixture of one paint (only where the table has a paint it never mixed: else no row can be of that kind), the
     largest of the folds' (a paint's mixtures are mispredicted together, and paints differ: the error that holds
-    90% of each left-out paint's mixtures); each fold refitted from the fit's start by `refit(folds)` -> each
+    90% of each left-out paint's mixtures); each fold refitted from the fit's start by `refit(folds, what)` -> each
     fold's held-out CIELAB. A table that mixes nothing takes `unmixed` from `_priors.UNMIXED_PRIOR`."""
     scale, rows, how = {}, {}, {}
     for k in ("single", "seen"):
@@ -621,7 +632,7 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
         rows[k] = len(test)
         if not len(test):
             continue
-        held = refit(folds)
+        held = refit(folds, what)
         if k == "unseen":
             scale[k] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test])
         else:  # a fold's rows are one paint's: they fail together; hold 90% of each paint's, the worst included

@@ -34,6 +34,8 @@ prediction error via approximate leave-one-out cross-validation", JRSS B 82 (202
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -92,7 +94,8 @@ def laplace(fn, y, n_rows: int, P: int, gamma: bool, rank: int = RANK):
 
 
 def refit_held_out(spectral, start, pb: _Problem, folds: list[np.ndarray], *, rtol: float,
-                   steps: int = FOLD_STEPS, refine_steps: int = FOLD_REFINE_STEPS) -> list[np.ndarray]:  # fmt: skip
+                   steps: int = FOLD_STEPS, refine_steps: int = FOLD_REFINE_STEPS,
+                   progress: Callable[[int, int], None] | None = None) -> list[np.ndarray]:  # fmt: skip
     """Each fold's rows' CIELAB as predicted by the fit refitted without them, in fold order.
 
     Each fold is the fit's own two stages run again from the fit's own `start` (which a table's single paints
@@ -100,7 +103,7 @@ def refit_held_out(spectral, start, pb: _Problem, folds: list[np.ndarray], *, rt
     (`BandLevenbergMarquardt`, at most `steps` steps), then the CIEDE2000 refinement of `pb` (at most
     `refine_steps`) with its ridge towards that fold's own log-reflectance spectra. Nothing of the full fit,
     which saw the fold's rows, enters a fold; the folds and the fit share its compiled programs (the rows' weights
-    are their argument)."""
+    are their argument). `progress(i, n)` is called as fold i of n begins."""
     solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
 
     def one(test):
@@ -113,7 +116,12 @@ def refit_held_out(spectral, start, pb: _Problem, folds: list[np.ndarray], *, rt
                                          rtol=max(rtol, 1e-5), weights=w)  # fmt: skip
         return np.asarray(pb.lab_of(pb.reflect(*y)), np.float64)[test]
 
-    return [one(t) for t in folds]
+    out = []
+    for i, test in enumerate(folds):
+        if progress is not None:
+            progress(i + 1, len(folds))
+        out.append(one(test))
+    return out
 
 
 def calibrate_scale(lab_true: np.ndarray, lab_pred: np.ndarray, spread: np.ndarray, level: float = _regions.LEVEL) -> float:

@@ -198,6 +198,8 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
     faces = np.asarray(loaded.faces, np.int64)
     if len(faces) == 0 or len(vertices) == 0:
         raise _fail(f"mesh {path} is empty (no triangles)", where, field)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:  # e.g. an OBJ whose `v` lines hold two numbers
+        raise _fail(f"mesh {path} has vertices of {vertices.shape[-1]} coordinates, not 3 (x, y, z)", where, field)
     in_range = np.all(np.abs(vertices) <= FLOAT32_MAX, axis=1)  # False for NaN too
     if not np.all(in_range):
         bad = int(np.argmax(~in_range))

@@ -118,6 +118,15 @@ def test_faces_naming_missing_vertices_are_refused(tmp_path):
         diffwash.load_mesh(tmp_path / "m.ply")  # was IndexError
 
 
+@pytest.mark.parametrize("text", ["v 0 0\nv 1 0\nv 0 1\nf 1 2 3\n", "v 0\nv 1\nv 2\nf 1 2 3\n"])
+def test_vertices_that_are_not_three_coordinates_are_refused(tmp_path, text):
+    """Found by `scripts/fuzz.py` (100,000 inputs): trimesh reads an OBJ whose `v` lines hold two numbers as 2-D
+    vertices, and the zero-area check then failed inside numpy.cross (ValueError, or a DeprecationWarning)."""
+    (tmp_path / "m.obj").write_text(text)
+    with pytest.raises(DiffwashError, match=r"m\.obj: .*vertices of [12] coordinates, not 3"):
+        diffwash.load_mesh(tmp_path / "m.obj")
+
+
 def test_json_readers_refuse_rather_than_crash_on_wrong_types(tmp_path):
     (tmp_path / "lib.json").write_text(json.dumps({"pigments": [{"name": "a", "K": [1, 1, 10**400], "S": [0, 0, 0]}]}))
     with pytest.raises(DiffwashError, match=r"pigments\[0\]\.K"):

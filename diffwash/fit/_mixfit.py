@@ -532,8 +532,8 @@ def fit_mixtures(
     if m.spectral and model.pairs:  # from the rows of one layer (a stack's layers are not fitted pair terms)
         A, G = _dense(m, list(names))
         one, A1 = _one_layer(A)
-        if pairs(m):
-            say(f"pair terms ({len(pairs(m))} pairs)")
+        if n_pairs := len(pairs(m)):
+            say(f"pair terms ({n_pairs} pairs)")
         terms, pairs_ok = _pairs.fit_pair_terms(palette, A1, G[one], measured_lab(m, obs)[one], obs.lab, k2,
                                                 ridge=model.pair_ridge)  # fmt: skip
         palette = eqx.tree_at(lambda p: p.pairs, palette, terms, is_leaf=lambda x: x is None)
@@ -598,7 +598,7 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     a = _posterior.shrink_per_pigment(lambda a: draw(a, one), row_pigment, P, lab_m[one], pred.lab[one])
     F, diag = _posterior.scaled(F, diag, a, owner)
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge),
-                        _SharedPrior(P, model, priors), jnp.ones(len(m), dtype))  # fmt: skip
+                        _SharedPrior(P, model, priors))  # fmt: skip
     start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
     refit = lambda folds, what: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
                                                           rtol=1e-7 if dtype == jnp.float64 else 1e-4,

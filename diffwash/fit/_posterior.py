@@ -44,7 +44,6 @@ import optimistix as optx
 from .. import _regions, colorimetry
 from . import _seen
 from ._bandlsq import BandLevenbergMarquardt, gauss_newton_blocks
-from ._seen import _Problem
 
 __all__ = ["laplace", "refit_held_out", "calibrate_scale", "shrink_per_pigment", "owners", "scaled"]
 
@@ -93,7 +92,7 @@ def laplace(fn, y, n_rows: int, P: int, gamma: bool, rank: int = RANK):
     return F, diag, float(np.sqrt(sigma2))
 
 
-def refit_held_out(spectral, start, pb: _Problem, folds: list[np.ndarray], *, rtol: float,
+def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray], *, rtol: float,
                    steps: int = FOLD_STEPS, refine_steps: int = FOLD_REFINE_STEPS,
                    progress: Callable[[int, int], None] | None = None) -> list[np.ndarray]:  # fmt: skip
     """Each fold's rows' CIELAB as predicted by the fit refitted without them, in fold order.

@@ -600,9 +600,10 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge),
                         _SharedPrior(P, model, priors))  # fmt: skip
     start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
-    refit = lambda folds, what: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
-                                                          rtol=1e-7 if dtype == jnp.float64 else 1e-4,
-                                                          progress=lambda i, n: say(f"{what} fold {i}/{n}"))  # fmt: skip
+    refit = lambda folds, what, **steps: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
+                                                                   rtol=1e-7 if dtype == jnp.float64 else 1e-4,
+                                                                   progress=lambda i, n: say(f"{what} fold {i}/{n}"),
+                                                                   **steps)  # fmt: skip
     scale, rows, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit)
     record = {"noise_log_reflectance": round(sigma, 6),
               "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
@@ -617,22 +618,24 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
     for `unseen`, of the held-out rows of leave-pairs-out folds, and for `unmixed`, of folds that hold out every
     mixture of one paint (only where the table has a paint it never mixed: else no row can be of that kind), the
     largest of the folds' (a paint's mixtures are mispredicted together, and paints differ: the error that holds
-    90% of each left-out paint's mixtures); each fold refitted from the fit's start by `refit(folds, what)` -> each
-    fold's held-out CIELAB. A table that mixes nothing takes `unmixed` from `_priors.UNMIXED_PRIOR`."""
+    90% of each left-out paint's mixtures); each fold refitted from the fit's start by `refit(folds, what, **steps)`
+    -> each fold's held-out CIELAB, a paint's folds converged (`_posterior.PAINT_FOLD_STEPS`). A table that mixes
+    nothing takes `unmixed` from `_priors.UNMIXED_PRIOR`."""
     scale, rows, how = {}, {}, {}
     for k in ("single", "seen"):
         sel = kind == k
         rows[k] = int(sel.sum())
         if sel.any():
             scale[k] = _posterior.calibrate_scale(lab_m[sel], lab_p[sel], spread[:, sel])
-    for k, folds, what in (("unseen", [t for _, t in pair_folds(m)], "leave-pairs-out"),
-                           ("unmixed", paint_folds(m), "leave-one-paint's-mixtures-out")):  # fmt: skip
+    converged = {"steps": _posterior.PAINT_FOLD_STEPS, "refine_steps": _posterior.PAINT_FOLD_REFINE_STEPS}
+    for k, folds, what, steps in (("unseen", [t for _, t in pair_folds(m)], "leave-pairs-out", {}),
+                                  ("unmixed", paint_folds(m), "leave-one-paint's-mixtures-out", converged)):  # fmt: skip
         folds = [t for t in folds if t.any()]
         test = np.concatenate([np.flatnonzero(t) for t in folds]) if folds else np.zeros(0, int)
         rows[k] = len(test)
         if not len(test):
             continue
-        held = refit(folds, what)
+        held = refit(folds, what, **steps)
         if k == "unseen":
             scale[k] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test])
         else:  # a fold's rows are one paint's: they fail together; hold 90% of each paint's, the worst included

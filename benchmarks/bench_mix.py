@@ -309,6 +309,8 @@ MODELS = {
     "ridge1": ("spectral Duncan, CIEDE2000 refinement, ridge 1", SPECTRAL, MixModel(ridge=1.0)),
     "weights": ("spectral + mixing weight per pigment", SPECTRAL, MixModel(weights=True)),
     "surface": ("spectral + Saunderson k2", SPECTRAL, MixModel(surface=True)),
+    "linearlaw": ("spectral Duncan, thickness proportional to amount (no fitted amount law)", SPECTRAL,
+                  MixModel(gamma=False)),
     "rgb": ("RGB table as smooth spectra, Duncan", RGB, MixModel()),
     "mixbox": ("Mixbox on measured single colours", RGB, None),
 }

@@ -32,7 +32,7 @@ from ._version import __version__
 from .colorimetry import to_display
 from .lut import Lut
 
-__all__ = ["viewer_html", "look_config"]
+__all__ = ["viewer_html", "look_config", "look_runner_source"]
 
 _FLOATS = ["k_wash", "k_specular", "shininess", "k_unlit", "gain", "bias", "wash_reduction", "lut_wash_max", "lut_unlit_max"]
 _VEC3S = ["light_direction", "eye", "paper"]
@@ -142,4 +142,9 @@ def viewer_html(
     template = (resources.files("diffwash") / "data" / "viewer.html").read_text(encoding="utf-8")
 
     name = title if title is not None else (scene.path or "scene")
-    return template.replace("__TITLE__", html.escape(str(name))).replace("__CONFIG__", blob)
+    return template.replace("__LOOK_RUNNER__", look_runner_source()).replace("__TITLE__", html.escape(str(name))).replace("__CONFIG__", blob)
+
+
+def look_runner_source() -> str:
+    """`diffwash/data/look-runner.js`: the JavaScript that runs the look's passes (the viewer page and the widget)."""
+    return (resources.files("diffwash") / "data" / "look-runner.js").read_text(encoding="utf-8")

@@ -56,6 +56,7 @@ __all__ = [
     "glsl_depth_pass",
     "glsl_hatching",
     "glsl_mix_lut",
+    "mix_lut",
     "glsl_surface",
     "glsl_final_pass",
     "geometry_sources",
@@ -537,17 +538,30 @@ void main() {
     return vert, frag
 
 
-def look_textures(scene: Any, p: Any) -> tuple[dict[str, list[np.ndarray]], float, float]:
-    """The look's input textures, each a list of levels (the mix LUT, the screen tile in two, the tonal art
-    map's atlas), and the mix LUT's wash and unlit ranges: what `LookFrame` uploads and export writes."""
+def _glaze_b(args: Any, w: Any, u: Any, m: Any) -> Any:
+    p, wash_b, unlit_b = args
+    return wl.glaze_mix(p, wash_b, unlit_b, w, u, m)
+
+
+def mix_lut(scene: Any, p: Any) -> tuple[np.ndarray, float, float]:
+    """The look's 3D mix LUT for shading `Params` `p` (float32, `look.bake_mix_lut`'s layout) and its wash and unlit
+    ranges. One function for every call, so a widget's re-bake reuses its compiled program."""
     wc = scene.watercolour
     wash_max, unlit_max = MIX_LUT_RANGE * float(p.wash_max), MIX_LUT_RANGE * float(p.unlit_max)
     wash_b = p.wash if wc.wash_b is None else wc.wash_b
     unlit_b = p.unlit if wc.unlit_b is None else wc.unlit_b
-    table = wl.bake_mix_lut(lambda q, w, u, m: wl.glaze_mix(q, wash_b, unlit_b, w, u, m), p, MIX_LUT_SIZE, wash_max=wash_max, unlit_max=unlit_max)
+    table = wl.bake_mix_lut(_glaze_b, (p, wash_b, unlit_b), MIX_LUT_SIZE, wash_max=wash_max, unlit_max=unlit_max)
+    return np.ascontiguousarray(np.asarray(table, np.float32)), wash_max, unlit_max
+
+
+def look_textures(scene: Any, p: Any) -> tuple[dict[str, list[np.ndarray]], float, float]:
+    """The look's input textures, each a list of levels (the mix LUT, the screen tile in two, the tonal art
+    map's atlas), and the mix LUT's wash and unlit ranges: what `LookFrame` uploads and export writes."""
+    wc = scene.watercolour
+    table, wash_max, unlit_max = mix_lut(scene, p)
     c = np.asarray(wc.screen, np.float32)
     out = {
-        "mix_lut": [np.ascontiguousarray(np.asarray(table, np.float32))],
+        "mix_lut": [table],
         "screen0": [np.ascontiguousarray(c[..., :4])],
         "screen1": [np.ascontiguousarray(c[..., 4:6])],
     }

@@ -18,10 +18,17 @@ What a change costs, by what it changes:
   values the viewer page embeds.
 
 So the table on screen is always `lut.bake(widget.params, lut_size)`.
+
+A scene with a `"watercolour"` object is drawn with the look's passes, as
+`viewer.html` draws them (`diffwash/data/look-runner.js`, one source for
+both; the shaders, pass graph and textures of `diffwash._look_export`), with
+a slider for each strength, width and amplitude of the effects the scene
+turns on (`look`: leaf -> value). Moving one sets its uniform at once; Python
+answers with the look's uniforms (`look_uniforms`: the edge blur's weights
+follow the width). A pigment or range change re-bakes the look's 3D mix LUT
+too (`mix_lut`, half floats). The checkbox shows the plain model instead.
 The export button (or `widget.export(folder)`) writes the tuned scene as
-`diffwash export` does. A scene's watercolour look is not drawn: the widget
-shows the plain model (the look's passes are in `viewer.html` and the
-three.js export).
+`diffwash export` does, the tuned look included.
 
 anywidget and traitlets are optional (the `widget` extra); the rest of
 diffwash never imports this module.
@@ -44,9 +51,12 @@ from ._errors import DiffwashError
 from ._export import export as _export
 from ._glsl import SHADING_MODES, shader_file_names, shader_sources
 from ._lazy import lazy
+from ._look_export import look_export
+from ._look_glsl import mix_lut as _mix_lut
 from ._mixture import Mixture
 from ._scene import Scene, load_scene
 from ._version import __version__
+from ._viewer import look_config, look_runner_source
 from .colorimetry import to_display
 from .pigments import Pigment
 from .shading import CONSTANTS, Params, paper_colour
@@ -113,7 +123,72 @@ def _constant_sliders(p: Params) -> list[dict[str, Any]]:
     return out
 
 
-def _config(scene: Scene, params: Params, lut_size: int) -> dict[str, Any]:
+def _look_leaves(scene: Scene) -> dict[str, float]:
+    """The look's leaves a slider moves: the fittable ones of the effects the scene turns on (value > 0)."""
+    from .look import leaf_specs
+
+    look = scene.watercolour.look
+    return {name: float(np.asarray(getattr(look, name))) for name, spec in leaf_specs().items()
+            if spec.fit and float(np.asarray(getattr(look, name))) > 0}  # fmt: skip
+
+
+def _look_sliders(scene: Scene) -> list[dict[str, Any]]:
+    from .look import leaf_specs
+
+    specs = leaf_specs()
+    out = []
+    for name, value in _look_leaves(scene).items():
+        spec = specs[name]
+        hi = spec.at_most if spec.at_most is not None else max(4 * value, 4 * spec.on, 1e-3)
+        out.append({"key": name, "label": f"{spec.effect}.{spec.key}", "min": 0.0, "max": float(hi), "step": float(hi) / 400,
+                    "doc": spec.doc})  # fmt: skip
+    return out
+
+
+def _with_look(scene: Scene, values: dict[str, Any]) -> Scene:
+    """`scene` with its look's leaves set to `values` (checked: known leaves, finite, >= 0, within their bound)."""
+    import equinox as eqx
+
+    from .look import leaf_specs
+
+    if not isinstance(values, dict):
+        raise DiffwashError(f"must map leaves to numbers, got {values!r}", field="look")
+    if scene.watercolour is None:
+        if values:
+            raise DiffwashError("the scene has no watercolour look", field="look")
+        return scene
+    specs, wc, movable = leaf_specs(), scene.watercolour, _look_leaves(scene)
+    names = list(values)
+    for name in names:
+        v = values[name]
+        if name not in movable:
+            raise DiffwashError(f"is not a slider of this scene's look (choose from {', '.join(movable)})", field=f"look.{name}")
+        top = specs[name].at_most
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0 or (top is not None and v > top) or v > 1e6:
+            raise DiffwashError(f"must be a number in [0, {top if top is not None else '1e6'}], got {v!r}", field=f"look.{name}")
+    if not names:
+        return scene
+    new = [np.asarray(values[n], np.asarray(getattr(wc.look, n)).dtype) for n in names]
+    look = eqx.tree_at(lambda lk: [getattr(lk, n) for n in names], wc.look, new)
+    return dataclasses.replace(scene, watercolour=eqx.tree_at(lambda w: w.look, wc, look))
+
+
+def _look_front(scene: Scene, look: Any) -> dict[str, Any]:
+    """What the front end needs once to run the look's passes (`look_config` of the scene's `look_export`), its
+    sliders and the layout of its per-vertex attributes (`look_mesh`)."""
+    out = look_config(look, np.asarray(scene.mesh.vertices, np.float64))
+    n = len(np.asarray(scene.mesh.vertices))
+    out["attributes"] = [[name, int(np.asarray(a).size // n)] for name, a in look.attributes.items()]
+    out["sliders"] = _look_sliders(scene)
+    return out
+
+
+def _look_mesh(look: Any) -> bytes:
+    """The look's per-vertex attributes (`_MIX`, `_STROKE`), float32, one after the other."""
+    return b"".join(np.ascontiguousarray(np.asarray(a, "<f4")).tobytes() for a in look.attributes.values())
+
+
+def _config(scene: Scene, params: Params, lut_size: int, look: Any = None) -> dict[str, Any]:
     """What the front end needs once: the shaders, the camera and size, the mesh's layout, the sliders."""
     shaders = {}
     for mode in SHADING_MODES:
@@ -138,7 +213,8 @@ def _config(scene: Scene, params: Params, lut_size: int) -> dict[str, Any]:
         "lut_size": lut_size,
         "constants": _constant_sliders(params),
         "pigments": {g: {"name": getattr(params, g).name, "sliders": _pigment_sliders(getattr(params, g))} for g in ("wash", "unlit")},
-        "look": scene.watercolour is not None,
+        "paper": _paper_sliders(params),
+        "look": None if look is None else _look_front(scene, look),
     }
 
 
@@ -170,7 +246,14 @@ def _with_pigment(p: Any, state: dict[str, Any], field: str) -> Any:
     return dataclasses.replace(p, K=numbers(state.get("K"), "K", size), S=numbers(state.get("S"), "S", size))
 
 
-def _params(base: Params, wash: dict, unlit: dict, constants: dict, light: list) -> Params:
+def _paper_sliders(p: Params) -> list[dict[str, Any]] | None:
+    """Sliders for the paper's reflectance per channel (None for spectral glazes, whose paper is per band)."""
+    if p.observation is not None or np.asarray(p.paper).shape != (3,):
+        return None
+    return [{"key": f"paper.{i}", "label": f"paper {c}", "min": 0.0, "max": 1.0, "step": 0.001} for i, c in enumerate("RGB")]
+
+
+def _params(base: Params, wash: dict, unlit: dict, constants: dict, light: list, paper: list | None = None) -> Params:
     """`base` with the widget's values (float64 NumPy scalars, as loaded scenes hold: the compiled bake is reused)."""
     c = {}
     for name in CONSTANTS:
@@ -181,6 +264,14 @@ def _params(base: Params, wash: dict, unlit: dict, constants: dict, light: list)
     direction = np.asarray(light, np.float64)
     if direction.shape != (3,) or not np.all(np.isfinite(direction)) or not np.any(direction):
         raise DiffwashError(f"must be 3 finite numbers, not all 0, got {light!r}", field="light")
+    if paper:  # an RGB scene's paper (a spectral one has no paper slider: [])
+        try:
+            reflectance = np.asarray(paper, np.float64) if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in paper) else None
+        except TypeError:
+            reflectance = None
+        if _paper_sliders(base) is None or reflectance is None or reflectance.shape != (3,) or not np.all((reflectance >= 0) & (reflectance <= 1)):
+            raise DiffwashError(f"must be 3 reflectances in [0, 1] (an RGB scene's paper), got {paper!r}", field="paper")
+        c["paper"] = reflectance
     return dataclasses.replace(
         base, wash=_with_pigment(base.wash, wash, "wash"), unlit=_with_pigment(base.unlit, unlit, "unlit"), light=direction, **c
     )
@@ -197,14 +288,19 @@ class _Widget:
         self._scene, self._base, self._lut_size = scene, params, lut_size
         self._table: _lut.Lut | None = None
         self._ready = False
+        look = None if scene.watercolour is None else look_export(scene, params)
         super().__init__(  # type: ignore[call-arg]
-            config=_config(scene, params, lut_size),
+            config=_config(scene, params, lut_size, look),
             mesh=mesh_bytes(scene),
             shading=scene.shading,
             constants={k: float(np.asarray(getattr(params, k))) for k in CONSTANTS},
             light=np.asarray(params.light, np.float64).tolist(),
             wash=_pigment_state(params.wash),
             unlit=_pigment_state(params.unlit),
+            look=_look_leaves(scene) if scene.watercolour is not None else {},
+            paper=np.asarray(params.paper, np.float64).tolist() if _paper_sliders(params) else [],
+            background=to_display(np.asarray(paper_colour(params), np.float64)).tolist(),
+            look_mesh=b"" if look is None else _look_mesh(look),
             **kwargs,
         )
         self._ready = True
@@ -214,12 +310,13 @@ class _Widget:
     @property
     def params(self) -> Params:
         """The tuned shading `Params`."""
-        return _params(self._base, self.wash, self.unlit, self.constants, self.light)
+        return _params(self._base, self.wash, self.unlit, self.constants, self.light, self.paper)
 
     @property
     def scene(self) -> Scene:
-        """The scene with the tuned `params` and shading mode."""
-        return dataclasses.replace(self._scene, params=self.params, shading=self.shading)
+        """The scene with the tuned `params`, shading mode and look."""
+        scene = dataclasses.replace(self._scene, params=self.params, shading=self.shading)
+        return scene if scene.watercolour is None else _with_look(scene, self.look)
 
     @property
     def table(self) -> _lut.Lut | None:
@@ -232,12 +329,33 @@ class _Widget:
         table = _lut.bake(self.params, self._lut_size)
         data = lut_bytes(table)
         elapsed = 1000 * (time.perf_counter() - start)
+        look = None
+        if self._scene.watercolour is not None:  # the look's 3D mix LUT, for the same values
+            look = _mix_lut(self._scene, self.params)
+            elapsed = 1000 * (time.perf_counter() - start)
         self._table = table
         with self.hold_sync():
             self.lut_range = [float(table.wash_max), float(table.unlit_max)]
             self.lut = data
+            self.background = to_display(np.asarray(paper_colour(self.params), np.float64)).tolist()
+            if look is not None:
+                self.mix_lut = np.ascontiguousarray(look[0]).astype("<f2").tobytes()
+                self._send_look_uniforms(look[1:])
             self.bake_ms = elapsed
         return table
+
+    def _send_look_uniforms(self, mix_range: tuple[float, float] | None = None) -> None:
+        """The look's uniforms for the current leaves (`look.look_uniforms`: the edge blur's weights follow its width)
+        and the mix LUT's range."""
+        from .look import look_uniforms
+
+        scene = _with_look(self._scene, self.look)
+        wc = scene.watercolour
+        u = look_uniforms(wc.look, wc.pigments, height=scene.height)
+        if mix_range is None:
+            mix_range = (self.look_uniforms.get("lut_wash_max"), self.look_uniforms.get("lut_unlit_max"))
+        u["lut_wash_max"], u["lut_unlit_max"] = (float(x) for x in mix_range)
+        self.look_uniforms = {k: [float(x) for x in v] if isinstance(v, (list, tuple)) else v for k, v in u.items()}
 
     def export(self, folder: str | os.PathLike | None = None, *, overwrite: bool = True) -> list[Path]:
         """Write the tuned scene as `diffwash export` does (into `folder`, default `export_folder`); a previous export there is replaced."""
@@ -249,10 +367,20 @@ class _Widget:
     def _check_values(self, proposal: Any) -> Any:
         """A value the model cannot take is refused before it is set (`DiffwashError` naming the field)."""
         if self._ready:
-            values = {k: getattr(self, k) for k in ("wash", "unlit", "constants", "light")}
+            values = {k: getattr(self, k) for k in ("wash", "unlit", "constants", "light", "paper")}
             values[proposal["trait"].name] = proposal["value"]
             _params(self._base, **values)
         return proposal["value"]
+
+    def _check_look(self, proposal: Any) -> Any:
+        if self._ready:
+            _with_look(self._scene, proposal["value"])
+        return proposal["value"]
+
+    def _on_look_leaf(self, change: dict) -> None:
+        """A look slider: its uniform is set in the page already; the uniforms that derive from it come back."""
+        if self._ready:
+            self._send_look_uniforms()
 
     def _check_shading(self, proposal: Any) -> Any:
         if proposal["value"] not in SHADING_MODES:
@@ -283,7 +411,7 @@ def _widget_class() -> type:
     class DiffwashWidget(_Widget, anywidget.AnyWidget):
         """A scene drawn live with the exported WebGL2 shaders (`diffwash.widget`)."""
 
-        _esm = t.Unicode(_front_end("widget.js")).tag(sync=True)
+        _esm = t.Unicode(look_runner_source() + "\n" + _front_end("widget.js")).tag(sync=True)
         _css = t.Unicode(_front_end("widget.css")).tag(sync=True)
         config = t.Dict().tag(sync=True)
         mesh = t.Bytes().tag(sync=True)
@@ -297,10 +425,18 @@ def _widget_class() -> type:
         bake_ms = t.Float(0.0).tag(sync=True)
         export_folder = t.Unicode(DEFAULT_FOLDER).tag(sync=True)
         status = t.Unicode("").tag(sync=True)
+        look = t.Dict().tag(sync=True)
+        paper = t.List(t.Float()).tag(sync=True)
+        background = t.List(t.Float()).tag(sync=True)
+        look_uniforms = t.Dict().tag(sync=True)
+        look_mesh = t.Bytes(b"").tag(sync=True)
+        mix_lut = t.Bytes(b"").tag(sync=True)
 
-        _validate_values = t.validate("wash", "unlit", "constants", "light")(_Widget._check_values)
+        _validate_values = t.validate("wash", "unlit", "constants", "light", "paper")(_Widget._check_values)
         _validate_shading = t.validate("shading")(_Widget._check_shading)
-        _observe = t.observe("wash", "unlit", "constants")(_Widget._changed)
+        _validate_look = t.validate("look")(_Widget._check_look)
+        _observe_look = t.observe("look")(_Widget._on_look_leaf)
+        _observe = t.observe("wash", "unlit", "constants", "paper")(_Widget._changed)
 
     return DiffwashWidget
 

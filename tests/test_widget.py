@@ -26,7 +26,7 @@ pytest.importorskip("anywidget", reason="needs anywidget (pip install 'diffwash[
 
 KNOT = DATA / "scenes" / "knot.json"
 SHOT = ROOT / "docs" / "images" / "widget.png"
-BINARY = ("mesh", "lut")
+BINARY = ("mesh", "lut", "look_mesh", "mix_lut")
 
 
 _BAKE = dlut.bake  # the real one, where a test counts the widget's calls of `lut.bake`
@@ -88,8 +88,21 @@ def test_rebake_time():
     assert np.median(warm) <= 200
 
 
+def test_paper_sliders_rebake_and_repaint_the_background(sphere, monkeypatch):
+    w = diffwash.widget(sphere)
+    assert [s["key"] for s in w.config["paper"]] == ["paper.0", "paper.1", "paper.2"]
+    assert w.paper == pytest.approx(np.asarray(sphere.params.paper).tolist())
+    w.paper = [0.6, 0.5, 0.3]
+    assert np.allclose(np.asarray(w.params.paper), [0.6, 0.5, 0.3]) and w.lut == bake_bytes(w.params)
+    assert w.background == pytest.approx(diffwash.colorimetry.to_display(np.asarray(diffwash.shading.paper_colour(w.params))).tolist())
+    assert np.allclose(np.asarray(w.scene.params.paper), [0.6, 0.5, 0.3])
+
+
 def test_library_mixture_proportions_rebake():
     w = diffwash.widget(DATA / "scenes" / "mixture.json")
+    assert w.config["paper"] is None and w.paper == []  # a spectral glaze's paper is per band: no slider
+    with pytest.raises(diffwash.DiffwashError, match="paper"):
+        w.paper = [0.5, 0.5, 0.5]
     keys = [s["key"] for s in w.config["pigments"]["wash"]["sliders"]]
     assert keys == ["mix.P4", "mix.P1", "amount"]
     w.wash = {"mix": {"P4": 0.4, "P1": 0.6}, "amount": 0.03}
@@ -104,7 +117,8 @@ def test_library_mixture_proportions_rebake():
     [("wash", {"K": [1.0, -1.0, 1.0], "S": [0.1, 0.1, 0.1]}, "wash.K"), ("unlit", {"K": [1.0, 1.0], "S": [0.1] * 3}, "unlit.K"),
      ("wash", {"K": [float("nan")] * 3, "S": [0.1] * 3}, "wash.K"), ("wash", {"K": [0.1] * 3, "S": ["a", 1, 2]}, "wash.S"), ("constants", {"gain": "x"}, "constants.gain"),
      ("constants", {"k_wash": -1.0}, "constants.k_wash"),
-     ("light", [0.0, 0.0, 0.0], "light"), ("shading", "flat", "shading")],  # fmt: skip
+     ("light", [0.0, 0.0, 0.0], "light"), ("shading", "flat", "shading"), ("paper", [1.5, 0.5, 0.5], "paper"),
+     ("paper", [0.5, float("nan"), 0.5], "paper"), ("paper", [0.5, 0.5], "paper")],  # fmt: skip
 )
 def test_bad_values_are_refused_naming_the_field(sphere, trait, value, field):
     w = diffwash.widget(sphere)
@@ -114,6 +128,52 @@ def test_bad_values_are_refused_naming_the_field(sphere, trait, value, field):
     with pytest.raises(diffwash.DiffwashError, match=field.replace(".", r"\.")):
         setattr(w, trait, value)
     assert getattr(w, trait) == before and w.lut == lut
+
+
+@pytest.mark.parametrize(
+    "value, field",
+    [({"granulation": 2.0}, "look.granulation"), ({"edge_width": float("nan")}, "look.edge_width"),
+     ({"edge_width": -1.0}, "look.edge_width"), ({"shadow_bias": 0.1}, "look.shadow_bias"), ({"edges": 1.0}, "look.edges"),
+     ({"edge_width": "wide"}, "look.edge_width")],  # fmt: skip
+)
+def test_bad_look_values_are_refused_naming_the_leaf(look_widget, value, field):
+    w = look_widget
+    before, uniforms = dict(w.look), dict(w.look_uniforms)
+    with pytest.raises(diffwash.DiffwashError, match=field.replace(".", r"\.")):
+        w.look = {**w.look, **value} if isinstance(value, dict) else value
+    assert w.look == before and w.look_uniforms == uniforms
+
+
+def test_a_plain_scene_has_no_look_to_set(sphere):
+    w = diffwash.widget(sphere)
+    assert w.config["look"] is None and w.look == {} and w.mix_lut == b""
+    with pytest.raises(diffwash.DiffwashError, match="no watercolour look"):
+        w.look = {"edge_width": 1.0}
+
+
+@pytest.fixture(scope="module")
+def look_widget(tmp_path_factory):
+    from test_look_preview import _showcase
+
+    return diffwash.widget(_showcase(tmp_path_factory.mktemp("look"), size=64))
+
+
+def test_look_sliders_set_the_tuned_scene_and_rebake_the_mix_lut(look_widget, tmp_path):
+    from diffwash._look_glsl import mix_lut
+
+    w = look_widget
+    assert w.mix_lut == np.ascontiguousarray(mix_lut(w.scene, w.params)[0]).astype("<f2").tobytes()
+    weights = w.look_uniforms["look_edge_weights"]
+    w.look = {**w.look, "edge_width": 6.0, "granulation": 0.2}
+    assert w.look_uniforms["look_edge_weights"] != weights and w.look_uniforms["look_granulation"] == pytest.approx(0.2)
+    look = w.scene.watercolour.look
+    assert float(look.edge_width) == 6.0 and float(look.granulation) == pytest.approx(0.2)
+    table = w.mix_lut
+    w.wash = {**w.wash, "K": [k * 2 for k in w.wash["K"]]}
+    assert w.mix_lut != table and w.mix_lut == np.ascontiguousarray(mix_lut(w.scene, w.params)[0]).astype("<f2").tobytes()
+    w.export(tmp_path / "out")
+    saved = diffwash.load_scene(tmp_path / "out" / "scene.json")
+    assert float(saved.watercolour.look.edge_width) == pytest.approx(6.0)
 
 
 def test_export_writes_the_tuned_scene(sphere, tmp_path):
@@ -202,7 +262,8 @@ class Host:
         for change in changes:
             for k, v in change.items():
                 setattr(self.w, k, v)
-        self.page.evaluate("(u) => window.host.receive(u)", _state(self.w, ["lut", "lut_range", "bake_ms", "status"]))
+        keys = ["lut", "lut_range", "bake_ms", "status", "background", *(["mix_lut", "look_uniforms"] if self.w.config["look"] else [])]
+        self.page.evaluate("(u) => window.host.receive(u)", _state(self.w, keys))
         return changes
 
     def frames(self):
@@ -281,6 +342,13 @@ def test_front_end_draws_what_diffwash_renders_and_follows_the_sliders(browser, 
         assert w.shading == "per-vertex" and psnr(host.canvas(), rendered(w.scene)) >= 35
         host.slide("azimuth", -60)
         host.sync()
+        assert psnr(host.canvas(), rendered(w.scene)) >= 35
+        # The paper: Python re-bakes the table over the new paper and sends the bare paper's colour back.
+        before = host.frames()
+        host.slide("paper.2", 0.35, wait=False)
+        host.sync()
+        host.page.wait_for_function(f"window.diffwashWidgets[0].frames > {before}", timeout=30000)
+        assert float(np.asarray(w.params.paper)[2]) == pytest.approx(0.35, abs=1e-3)
         assert psnr(host.canvas(), rendered(w.scene)) >= 35
         # The export button sends its message; the kernel answers with the status, which the panel shows.
         host.page.click(".dw-export")
@@ -363,6 +431,94 @@ def test_front_end_frame_rate_and_latency_on_the_knot(browser, tmp_path):
             png = host.page.locator(".diffwash-widget").screenshot()
             SHOT.write_bytes(png)
             Image.open(SHOT).convert("RGB").save(SHOT, optimize=True)
+        assert host.errors() == []
+    finally:
+        host.close()
+
+
+def test_front_end_draws_the_watercolour_look(browser, tmp_path):
+    """A scene with the watercolour look is drawn with the look's passes (look-runner.js, the viewer page's own
+    source): against `diffwash render` as the viewer is (>= 38 dB); a look slider changes the picture as the
+    renderer predicts, the edge width through the blur weights Python sends back; a pigment re-bakes the look's mix
+    LUT; the checkbox shows the plain model."""
+    from test_look_preview import _showcase
+
+    scene = diffwash.load_scene(_showcase(tmp_path, size=256))
+    w = diffwash.widget(scene)
+    assert [s["label"] for s in w.config["look"]["sliders"]][:2] == ["edges.darkening", "edges.width"]
+    host = Host(browser, w, tmp_path / "host")
+    try:
+        assert host.page.evaluate("window.diffwashWidgets[0].look")
+        first = host.canvas()
+        db = psnr(first, rendered(scene))
+        assert db >= 38, db
+        host.slide("edge_darkening", 0.0)
+        assert host.sync() == [{"look": {**w.look, "edge_darkening": 0.0}}]
+        moved = host.canvas()
+        assert psnr(moved, first) < 40 and psnr(moved, rendered(w.scene)) >= 38
+        host.slide("edge_darkening", 6.0)
+        host.slide("edge_width", 8.0)
+        before = host.frames()
+        host.sync()  # Python's blur weights for the new width come back, and the page redraws
+        host.page.wait_for_function(f"window.diffwashWidgets[0].frames > {before}", timeout=30000)
+        assert float(np.asarray(w.scene.watercolour.look.edge_width)) == pytest.approx(8.0, abs=0.05)
+        wide = host.canvas()
+        assert psnr(wide, moved) < 40 and psnr(wide, rendered(w.scene)) >= 38
+        # A pigment: Python re-bakes the 2D LUT and the look's mix LUT, and the page draws them.
+        before = host.frames()
+        host.slide("K.2", np.log10(3 * w.wash["K"][2]), wait=False)
+        host.sync()
+        host.page.wait_for_function(f"window.diffwashWidgets[0].frames > {before}", timeout=30000)
+        repainted = host.canvas()
+        assert psnr(repainted, wide) < 40 and psnr(repainted, rendered(w.scene)) >= 38
+        fps = host.page.evaluate("""(n) => { const api = window.diffwashWidgets[0]; api.draw(); api.sync();
+            const t0 = performance.now(); for (let i = 0; i < n; i++) { api.draw(); api.sync(); }
+            return n * 1000 / (performance.now() - t0); }""", 10)  # fmt: skip
+        print(f"widget with the watercolour look in Chromium (SwiftShader), {scene.width}^2, {w.config['faces']} "
+              f"triangles: {fps:.1f} fps; first frame {db:.1f} dB against diffwash render; mix LUT re-bake "
+              f"{w.bake_ms:.0f} ms with the 2D LUT")  # fmt: skip
+        # The checkbox: the plain model, drawn as `diffwash render` draws the scene without its look.
+        before = host.frames()
+        host.page.locator(".dw-panel input[type=checkbox]").uncheck()
+        host.page.wait_for_function(f"window.diffwashWidgets[0].frames > {before}", timeout=30000)
+        import dataclasses
+
+        plain = dataclasses.replace(w.scene, watercolour=None)
+        assert psnr(host.canvas(), rendered(plain)) >= 35
+        assert host.errors() == []
+    finally:
+        host.close()
+
+
+def test_front_end_look_frame_rate_on_the_showcase(browser, tmp_path):
+    """The watercolour showcase (`data/scenes/watercolour.json`: every effect, the 100k-triangle knot, 512^2) drawn
+    with the look's six passes: frame rate and a look slider's latency, printed (docs/widget.md); held only against
+    breakage, SwiftShader rendering the passes on the CPU."""
+    scene = diffwash.load_scene(DATA / "scenes" / "watercolour.json")
+    w = diffwash.widget(scene)
+    host = Host(browser, w, tmp_path / "host")
+    try:
+        db = psnr(host.canvas(), rendered(scene))
+        fps = host.page.evaluate("""(n) => { const api = window.diffwashWidgets[0]; api.draw(); api.sync();
+            const t0 = performance.now(); for (let i = 0; i < n; i++) { api.draw(); api.sync(); }
+            return n * 1000 / (performance.now() - t0); }""", 10)  # fmt: skip
+        latencies = host.page.evaluate("""async (values) => { const api = window.diffwashWidgets[0], out = [];
+            const input = document.querySelector("input[data-key='granulation']");
+            for (const v of values) { const t0 = performance.now(); const done = api.nextFrame();
+                input.value = v; input.dispatchEvent(new Event("input")); out.push(await done - t0); }
+            return out; }""", [0.2, 0.3, 0.4, 0.5, 0.7, 0.9])  # fmt: skip
+        host.sync()
+        print(f"widget with the watercolour look (every effect), knot {scene.width}x{scene.height}, {w.config['faces']} "
+              f"triangles, Chromium (SwiftShader): {fps:.1f} fps back to back; look slider to screen median "
+              f"{np.median(latencies):.0f} ms; first frame {db:.1f} dB against diffwash render "
+              f"(load average {os.getloadavg()[0]:.1f})")  # fmt: skip
+        assert db >= 35 and fps >= 0.5
+        assert psnr(host.canvas(), rendered(w.scene)) >= 35  # the granulation slider reached the shader
+        if os.environ.get("DIFFWASH_DOCS_IMAGES"):  # docs/widget.md's picture of the look
+            png = host.page.locator(".diffwash-widget").screenshot()
+            path = ROOT / "docs" / "images" / "widget-look.png"
+            path.write_bytes(png)
+            Image.open(path).convert("RGB").save(path, optimize=True)
         assert host.errors() == []
     finally:
         host.close()

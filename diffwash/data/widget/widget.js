@@ -4,6 +4,10 @@
 // the mesh arrives once as bytes (`mesh`), the LUT as bytes whenever Python re-bakes it (`lut`, `lut_range`).
 // A slider of a uniform (shininess, gain, bias, wash reduction, the light) redraws at once, without Python;
 // a slider of a range constant or a pigment sets its trait and Python sends the re-baked LUT back.
+// A scene with a watercolour look is drawn with the look's passes: createLookRunner, from look-runner.js, which
+// diffwash/_widget.py puts before this file (the same source viewer.html runs). A look slider sets its uniform at
+// once; Python answers with the uniforms that derive from it (`look_uniforms`) and, after a pigment change, the
+// look's 3D mix LUT (`mix_lut`).
 // For scripts and tests, `el.diffwash` (and `window.diffwashWidgets`) hold the widget's state and controls.
 
 const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
@@ -83,10 +87,42 @@ function uploadMesh(g, config, data) {
     const b = gl.createBuffer(); gl.bindBuffer(gl.ARRAY_BUFFER, b); gl.bufferData(gl.ARRAY_BUFFER, values, gl.STATIC_DRAW);
     gl.enableVertexAttribArray(loc); gl.vertexAttribPointer(loc, 3, gl.FLOAT, false, 0, 0);
   });
-  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, gl.createBuffer());
+  const ibo = gl.createBuffer();
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ibo);
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, indices, gl.STATIC_DRAW);
   gl.bindVertexArray(null);
   g.count = indices.length;
+  g.mesh = {position: position, normal: normal, indices: indices, ibo: ibo};
+}
+
+// The look's passes over the same mesh, with its per-vertex attributes (`look_mesh`: each float32, in turn); null
+// with the reason where this WebGL2 cannot draw them.
+function createLook(g, config, data) {
+  if (!config.look) return {runner: null, why: ""};
+  if (!g.gl.getExtension("EXT_color_buffer_float")) {
+    return {runner: null, why: "this browser's WebGL2 has no EXT_color_buffer_float (float render targets), which the watercolour look needs: showing the plain model"};
+  }
+  const bytes = u8(data), attributes = {POSITION: g.mesh.position, NORMAL: g.mesh.normal};
+  let offset = 0;
+  for (const [name, comps] of config.look.attributes) {
+    const n = config.vertices * comps;
+    attributes[name] = view(bytes, offset, n, Float32Array); offset += 4 * n;
+  }
+  const mesh = Object.assign({attributes: attributes}, g.mesh);
+  return {runner: createLookRunner(g.gl, config.look, mesh, (msg) => { throw new Error(msg); }), why: ""};
+}
+function uploadMixLut(look, config, data) {
+  const spec = config.look.textures.mix_lut, shape = spec.levels[0].shape, n = shape.reduce((a, b) => a * b, 1) * spec.channels;
+  look.setTexture("mix_lut", {channels: spec.channels, levels: [{shape: shape, half_float: view(u8(data), 0, n, Uint16Array)}]});
+}
+const rowsOf = (m, n) => Array.from({length: n}, (_, r) => Array.from({length: n}, (_, c) => m[c * n + r]));
+function drawLook(look, config, s) {
+  const cam = config.camera, leaves = {};
+  for (const k in s.lookValues) leaves["look_" + k] = s.lookValues[k];
+  const vp = mul(perspective(cam.fov_y, config.width / config.height, s.near, s.far), lookAt(s.eye, cam.target, cam.up));
+  const values = Object.assign({}, config.look.uniforms, s.constants, s.lookUniforms, leaves, {
+    light_direction: s.light, eye: s.eye, view_projection: rowsOf(vp, 4), eye_forward: normalize(sub(cam.target, s.eye))});
+  look.draw(values, s.light, [config.width, config.height]);
 }
 
 // The LUT: sRGB-encoded half floats, top row first (v = 0), linear filtering, clamped, as the shaders expect.
@@ -99,7 +135,7 @@ function uploadLut(g, size, data) {
 }
 
 function draw(g, config, s) {
-  const gl = g.gl, p = g.programs[s.shading], bg = config.background, cam = config.camera;
+  const gl = g.gl, p = g.programs[s.shading], bg = s.background, cam = config.camera;
   gl.bindFramebuffer(gl.FRAMEBUFFER, null);
   gl.viewport(0, 0, config.width, config.height);
   gl.clearColor(bg[0], bg[1], bg[2], 1); gl.clearDepth(1);
@@ -184,8 +220,29 @@ function rebakeSender(model) {
   return b;
 }
 
-function buildPanel(panel, model, config, s, rebake) {
-  const controls = {constants: {}, wash: {}, unlit: {}};
+function buildPanel(panel, model, config, s, rebake, redraw, look) {
+  const controls = {constants: {}, wash: {}, unlit: {}, look: {}};
+  if (config.look) {
+    const box = element("fieldset", {}, panel);
+    element("legend", {}, box, "watercolour look");
+    const label = element("label", {class: "dw-radio"}, box);
+    const on = element("input", {type: "checkbox"}, label);
+    label.appendChild(document.createTextNode(" draw the look"));
+    on.checked = s.lookOn; on.disabled = !look;
+    on.addEventListener("change", () => { s.lookOn = on.checked; syncModes(); redraw(); });
+    controls.lookOn = on;
+    for (const spec of config.look.sliders) {
+      const sl = slider(box, spec, s.lookValues[spec.key], (v) => {
+        s.lookValues[spec.key] = v; redraw();
+        model.set("look", Object.assign({}, model.get("look"), {[spec.key]: v})); model.save_changes();
+      });
+      sl.input.title = spec.doc; sl.input.disabled = !look;
+      controls.look[spec.key] = sl;
+    }
+  }
+  // The look's geometry pass computes the thicknesses per pixel: the mode radios wait while it is drawn.
+  const syncModes = () => { for (const mode of Object.keys(config.shaders)) if (controls["shading-" + mode]) controls["shading-" + mode].disabled = !!(look && s.lookOn); };
+  controls.syncModes = syncModes;
   const modes = element("fieldset", {}, panel);
   element("legend", {}, modes, "thickness");
   for (const mode of Object.keys(config.shaders)) {
@@ -213,6 +270,17 @@ function buildPanel(panel, model, config, s, rebake) {
       if (spec.rebake) rebake.save(); else model.save_changes();
     });
   }
+  if (config.paper) {
+    const box = element("fieldset", {}, panel);
+    element("legend", {}, box, "paper (re-bake)");
+    controls.paper = {};
+    config.paper.forEach((spec, i) => {
+      controls.paper[i] = slider(box, spec, model.get("paper")[i], (v) => {
+        const paper = model.get("paper").slice(); paper[i] = v;
+        model.set("paper", paper); rebake.save();
+      });
+    });
+  }
   for (const glaze of ["wash", "unlit"]) {
     const box = element("fieldset", {}, panel), info = config.pigments[glaze];
     element("legend", {}, box, glaze + ": " + info.name + " (re-bake)");
@@ -231,6 +299,7 @@ function buildPanel(panel, model, config, s, rebake) {
   controls.folder = folder; controls.button = button;
   controls.status = element("div", {class: "dw-status"}, panel);
   controls.info = element("div", {class: "dw-info"}, panel);
+  syncModes();
   return controls;
 }
 
@@ -240,7 +309,7 @@ function render({model, el}) {
   const config = model.get("config"), cam = config.camera;
   const s = {id: ++count, shading: model.get("shading"), constants: Object.assign({}, model.get("constants")),
              light: model.get("light").slice(), lutRange: model.get("lut_range").slice(),
-             eye: cam.eye.slice(), near: cam.near, far: cam.far};
+             eye: cam.eye.slice(), near: cam.near, far: cam.far, background: model.get("background").slice()};
   const root = element("div", {class: "diffwash-widget"}, el);
   const canvas = element("canvas", {width: config.width, height: config.height, class: "dw-canvas"}, root);
   canvas.style.width = config.width + "px"; canvas.style.height = config.height + "px";
@@ -254,10 +323,13 @@ function render({model, el}) {
   }
   uploadMesh(g, config, model.get("mesh"));
   uploadLut(g, config.lut_size, model.get("lut"));
-  const api = {frames: 0, state: s, canvas: canvas, gl: g.gl, waiters: []};
+  const made = createLook(g, config, model.get("look_mesh")), look = made.runner;
+  if (look && model.get("mix_lut").byteLength) uploadMixLut(look, config, model.get("mix_lut"));
+  s.lookOn = !!look; s.lookValues = Object.assign({}, model.get("look")); s.lookUniforms = Object.assign({}, model.get("look_uniforms"));
+  const api = {frames: 0, state: s, canvas: canvas, gl: g.gl, waiters: [], look: !!look};
   // Draw now (the test's frame rate), or on the next animation frame (the panel's changes, at most one per frame).
   api.draw = () => {
-    draw(g, config, s);
+    if (look && s.lookOn) drawLook(look, config, s); else draw(g, config, s);
     api.frames += 1;
     const waiting = api.waiters; api.waiters = [];
     waiting.forEach((f) => f());
@@ -269,12 +341,12 @@ function render({model, el}) {
   const redraw = () => { if (!pending) { pending = true; requestAnimationFrame(() => { pending = false; api.draw(); }); } };
   api.redraw = redraw;
   const rebake = rebakeSender(model);
-  const controls = buildPanel(panel, model, config, s, rebake);
+  const controls = buildPanel(panel, model, config, s, rebake, redraw, look);
   api.controls = controls;
   const status = () => {
     controls.status.textContent = model.get("status");
     controls.info.textContent = `${config.faces} triangles; LUT ${config.lut_size}\u00b2, last bake ${model.get("bake_ms").toFixed(0)} ms` +
-      (config.look ? "; the watercolour look is not drawn here (viewer.html and the three.js export draw it)" : "") +
+      (config.look ? (look ? "; the watercolour look's passes" : "; " + made.why) : "") +
       `; diffwash ${config.version}`;
   };
   status();
@@ -297,6 +369,15 @@ function render({model, el}) {
     on("wash", () => { for (const k in controls.wash) controls.wash[k].set(valueOf(model.get("wash"), k)); }),
     on("unlit", () => { for (const k in controls.unlit) controls.unlit[k].set(valueOf(model.get("unlit"), k)); }),
     on("status", status), on("bake_ms", () => { rebake.done(); status(); }),
+    on("background", () => { s.background = model.get("background").slice(); redraw(); }),
+    on("paper", () => { if (controls.paper) for (const k in controls.paper) controls.paper[k].set(model.get("paper")[+k]); }),
+    on("mix_lut", () => { if (look) { uploadMixLut(look, config, model.get("mix_lut")); redraw(); } }),
+    on("look_uniforms", () => { s.lookUniforms = Object.assign({}, model.get("look_uniforms")); redraw(); }),
+    on("look", () => {
+      s.lookValues = Object.assign({}, model.get("look"));
+      for (const k in controls.look) controls.look[k].set(s.lookValues[k]);
+      redraw();
+    }),
     on("export_folder", () => { controls.folder.value = model.get("export_folder"); }),
   ];
   // Left-drag orbits the camera about its target (the first frame is the scene's camera).

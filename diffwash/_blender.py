@@ -51,7 +51,8 @@ from .lut import Lut
 from .shading import CONSTANTS
 
 __all__ = ["BLENDER_FILES", "BLENDER_SCRIPT", "BLENDER_DATA", "BLENDER_FILE", "node_program", "thickness_program",
-           "evaluate_program", "blender_config", "blender_script", "write_blender", "bpy_available"]  # fmt: skip
+           "look_programs", "LOOK_NOT_CARRIED", "evaluate_program", "blender_config", "blender_script", "write_blender",
+           "bpy_available"]  # fmt: skip
 
 #: The script, its data, and the `.blend` written where `bpy` is importable.
 BLENDER_SCRIPT, BLENDER_DATA, BLENDER_FILE = "blender_scene.py", "blender_data.npz", "scene.blend"
@@ -315,6 +316,47 @@ def _evaluate_node(op: str, operation: str | None, args: list[Any]) -> Any:
 # --- the script and its data ------------------------------------------------------------------------
 
 
+#: The watercolour look's effects that shader nodes cannot carry, and why: each needs more than the pixel's own
+#: values (the look's other effects are per pixel and are carried: `look_programs`).
+LOOK_NOT_CARRIED = {
+    "edges": "edge darkening needs the glazes' local mean, a blur over the whole image",
+    "shadow": "the object's own shadow needs a depth map drawn from the light",
+    "hatching": "hatching reads a tonal art map at a level of detail per pixel, from screen-space derivatives",
+}
+#: The per-pixel inputs of the look's image terms in Blender (`look_programs`): the thicknesses, the per-vertex mix
+#: and stroke value, and the screen tile's channels.
+_LOOK_TERMS = ("wash", "unlit", "mix", "stroke", "paper", "turbulence_wash", "dispersion_wash", "turbulence_unlit",
+               "dispersion_unlit")  # fmt: skip
+
+
+def look_programs(scene: Any) -> dict[str, Any]:
+    """The watercolour look's per-pixel arithmetic lowered to Blender nodes (`node_program`), the scene's look values
+    and pigments in it as constants: `terms` (`diffwash.look.pixel_terms` at a pixel whose local mean is its own
+    value: no edge darkening; outputs `wash`, `unlit`) and `relief` (`diffwash.look.paper_shading`: `rgb`)."""
+    from . import look as wl
+
+    wc = scene.watercolour
+    look, pigments = wc.look, wc.pigments
+
+    def terms(w, u, m, stroke, paper, tw, dw, tu, du):
+        return wl.pixel_terms(w, u, w, u, m, stroke, paper, tw, dw, tu, du, look, pigments)
+
+    return {"terms": node_program(terms, dict.fromkeys(_LOOK_TERMS, 1), ["wash", "unlit"]),
+            "relief": node_program(lambda rgb, shade: wl.paper_shading(rgb, shade, look.paper_shading),
+                                   {"rgb": 3, "shade": 1}, ["rgb"])}  # fmt: skip
+
+
+def _look_config(scene: Any, p: Any) -> dict[str, Any]:
+    from ._look_glsl import MIX_LUT_SIZE, mix_lut
+    from .look import CHANNELS
+
+    wc = scene.watercolour
+    _, wash_max, unlit_max = mix_lut(scene, p)
+    return {**look_programs(scene), "channels": list(CHANNELS), "tile": list(np.asarray(wc.screen).shape[:2]),
+            "mix_lut": {"size": list(MIX_LUT_SIZE), "wash_max": wash_max, "unlit_max": unlit_max},
+            "not_carried": [k for k in LOOK_NOT_CARRIED if k in wc.effects]}  # fmt: skip
+
+
 def _camera_to_world(camera: Any) -> list[list[float]]:
     """The camera's object matrix in Blender: the inverse of diffwash's view matrix (both look down -z, y up)."""
     return np.linalg.inv(np.asarray(camera.view(), np.float64)).tolist()
@@ -345,6 +387,7 @@ def blender_config(scene: Any, lut: Lut, params: Any = None) -> dict[str, Any]:
         "constants": {k: float(np.asarray(getattr(p, k))) for k in CONSTANTS},
         "lut": {"size": list(lut.size), "wash_max": float(lut.wash_max), "unlit_max": float(lut.unlit_max)},
         "thickness": thickness_program(),
+        "look": None if scene.watercolour is None else _look_config(scene, p),
     }
 
 
@@ -367,12 +410,22 @@ def write_blender(folder: Path, scene: Any, lut: Lut, *, params: Any = None, ble
     """Write the script and its data into `folder`, and the `.blend` where `bpy` is importable (`blend`: force)."""
     (folder / BLENDER_SCRIPT).write_text(blender_script(scene, lut, params), encoding="utf-8")
     mesh = scene.mesh
+    look = {}
+    if scene.watercolour is not None:  # the look's mix LUT, screen tile, and per-vertex mix and stroke value
+        from ._look_glsl import mix_lut
+
+        wc, n = scene.watercolour, len(np.asarray(mesh.vertices))
+        look = {"mix_lut": mix_lut(scene, scene.params if params is None else params)[0],
+                "screen": np.asarray(wc.screen, np.float32),
+                "look_mix": np.zeros(n, np.float32) if wc.mix is None else np.asarray(wc.mix, np.float32),
+                "look_stroke": np.zeros(n, np.float32) if wc.strokes is None else np.asarray(wc.strokes, np.float32)}  # fmt: skip
     np.savez(
         folder / BLENDER_DATA,
         vertices=np.asarray(mesh.vertices, np.float32),
         faces=np.asarray(mesh.faces, np.int32),
         normals=np.asarray(mesh.normals, np.float32),
         lut=np.asarray(lut.values, np.float32),
+        **look,
     )
     written = [folder / BLENDER_SCRIPT, folder / BLENDER_DATA]
     if blend if blend is not None else bpy_available():

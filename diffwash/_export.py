@@ -24,8 +24,10 @@
 - for the `blender` target, `blender_scene.py` (builds the scene in Blender: node
   groups generated from the model, camera, render settings), `blender_data.npz`
   (mesh and LUT) and, where `bpy` is importable, `scene.blend`
-  (`diffwash._blender`); its shader files are GLSL 3.30. It draws the plain
-  model with the colour LUT: a watercolour look or `kind="rt"` is refused.
+  (`diffwash._blender`); its shader files are GLSL 3.30. It draws the model
+  with the colour LUT (`kind="rt"` is refused), and a watercolour look's per-pixel
+  effects (paper, unevenness, strokes, mix); edge darkening, the own shadow and
+  hatching it cannot carry, and the script says so when it builds the scene.
 
 The folder appears whole or not at all: everything is written into a temporary
 folder beside it, which is then renamed.
@@ -144,11 +146,8 @@ def _is_export(folder: Path) -> bool:
 
 
 def _check_blender(scene: Scene, kind: str) -> None:
-    """Refuse what the Blender target cannot draw: the watercolour look's passes, the R/T LUT."""
-    if scene.watercolour is not None:
-        raise DiffwashError("the Blender target draws the plain model; the watercolour look's passes (an edge blur over "
-                            "the whole image, a G-buffer) are beyond shader nodes: export it for webgl2, glsl330 or "
-                            "threejs, or remove the \"watercolour\" object", file=scene.path, field="watercolour")  # fmt: skip
+    """Refuse what the Blender target cannot draw: the R/T LUT. (The watercolour look is carried as far as shader
+    nodes reach: `diffwash._blender.LOOK_NOT_CARRIED`.)"""
     if kind != "colour":
         raise DiffwashError("the Blender target reads the colour LUT; R and T over a paper uniform (--rt) are for "
                             "the GLSL targets", field="rt")  # fmt: skip

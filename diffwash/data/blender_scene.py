@@ -18,6 +18,13 @@ It reads blender_data.npz beside it (the mesh and the baked LUT) and builds, in 
 - render settings that draw what diffwash draws: the view transform "Standard" (display sRGB, no
   tone curve), one sample at the pixel centre, no denoising, no dithering.
 
+With a watercolour look, the material `diffwash look` draws the look's per-pixel effects (paper
+granulation, density and shading, unevenness, strokes, the mix of two pigments by a per-vertex map)
+with the node group `diffwash look` (the look's image terms, generated from diffwash.look; the screen
+tile read at the pixel through the Window coordinates; the 3D mix LUT), and a backdrop behind the mesh
+shows the paper's relief. Edge darkening, the own shadow and hatching are not carried (each needs more
+than the pixel's own values); the script says which of them the scene turns on.
+
 Only the scene's data is specific to it (CONFIG below); the rest is the same for every scene.
 """
 
@@ -132,20 +139,7 @@ def thickness_group(tree_type, name):
 
 def lut_image():
     """The baked LUT as a float image, linear values ("Non-Color"), the image's top row unlit = 0."""
-    import bpy
-
-    lut = np.load(HERE / "blender_data.npz")["lut"]
-    rows, cols = lut.shape[:2]
-    image = bpy.data.images.new("diffwash LUT", cols, rows, alpha=False, float_buffer=True)
-    image.colorspace_settings.name = "Non-Color"  # before the pixels: changing it regenerates the image
-    image.use_half_precision = False
-    rgba = np.ones((rows, cols, 4), np.float32)
-    rgba[..., :3] = lut
-    image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())  # Blender's rows run from the bottom
-    image.update()
-    image.file_format = "OPEN_EXR"
-    image.pack()
-    return image
+    return float_image("diffwash LUT", np.load(HERE / "blender_data.npz")["lut"])
 
 
 def _math(tree, operation, a, b, c=None, clamp=False):
@@ -161,8 +155,8 @@ def _math(tree, operation, a, b, c=None, clamp=False):
     return n.outputs[0]
 
 
-def _texel_pair(tree, t, n):
-    """Texel coordinates of the two samples around `t` in [0, 1] on an axis of `n` texels, and the weight between them.
+def _texel_indices(tree, t, n):
+    """The indices of the two samples around `t` in [0, 1] on an axis of `n` texels, and the weight between them.
 
     docs/realtime.md's addressing: the thickness range maps onto the texel centres, so the position in texels is
     x = t (n - 1); the samples are floor(x) and the next one (the last texel at t = 1), weighted x - floor(x).
@@ -170,8 +164,13 @@ def _texel_pair(tree, t, n):
     x = _math(tree, "MULTIPLY", t, float(n - 1))
     i0 = _math(tree, "FLOOR", x, 0.0)
     i1 = _math(tree, "MINIMUM", _math(tree, "ADD", i0, 1.0), float(n - 1))
-    centres = [_math(tree, "DIVIDE", _math(tree, "ADD", i, 0.5), float(n)) for i in (i0, i1)]
-    return centres, _math(tree, "SUBTRACT", x, i0)
+    return (i0, i1), _math(tree, "SUBTRACT", x, i0)
+
+
+def _texel_pair(tree, t, n):
+    """Texel coordinates (centres, in [0, 1]) of the two samples around `t` (`_texel_indices`), and their weight."""
+    (i0, i1), f = _texel_indices(tree, t, n)
+    return [_math(tree, "DIVIDE", _math(tree, "ADD", i, 0.5), float(n)) for i in (i0, i1)], f
 
 
 def _mix(tree, a, b, f):
@@ -214,6 +213,106 @@ def lut_group(image):
     top, bottom = _mix(group, texels[0, 0], texels[1, 0], fu), _mix(group, texels[0, 1], texels[1, 1], fu)
     group.links.new(_mix(group, top, bottom, fv), go.inputs["Colour"])
     gi.location, go.location = (-400, 0), (1200, 0)
+    return group
+
+
+def float_image(name, values):
+    """`values` (rows, cols, 3), row 0 at the top, as a float image of linear values ("Non-Color"), packed."""
+    import bpy
+
+    rows, cols = values.shape[:2]
+    image = bpy.data.images.new(name, cols, rows, alpha=False, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.use_half_precision = False
+    rgba = np.ones((rows, cols, 4), np.float32)
+    rgba[..., :3] = values
+    image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())  # Blender's rows run from the bottom
+    image.update()
+    image.file_format = "OPEN_EXR"
+    image.pack()
+    return image
+
+
+def mix_lut_group():
+    """`diffwash mix LUT`: the look's 3D LUT over (wash, unlit, mix), as the shaders' sampler3D reads it.
+
+    The 16 mix slices lie side by side in one image (slice k in columns k N to (k + 1) N - 1); trilinear
+    interpolation between texel centres, written out: eight "Closest" reads and seven mixes.
+    """
+    lut = CONFIG["look"]["mix_lut"]
+    N, M, P = lut["size"]
+    table = np.load(HERE / "blender_data.npz")["mix_lut"]  # (P, M, N, 3)
+    image = float_image("diffwash mix LUT", np.concatenate(list(table), axis=1))
+    inputs = [("Wash", 1, 0.0), ("Unlit", 1, 0.0), ("Mix", 1, 0.0), ("LUT Wash Max", 1, lut["wash_max"]),
+              ("LUT Unlit Max", 1, lut["unlit_max"])]
+    group, gi, go = new_group("diffwash mix LUT", "ShaderNodeTree", inputs, [("Colour", 3)])
+    tw = _math(group, "DIVIDE", gi.outputs["Wash"], gi.outputs["LUT Wash Max"], clamp=True)
+    tu = _math(group, "DIVIDE", gi.outputs["Unlit"], gi.outputs["LUT Unlit Max"], clamp=True)
+    tm = _math(group, "MULTIPLY", gi.outputs["Mix"], 1.0, clamp=True)
+    (ws, fw), (us, fu), (ms, fm) = _texel_indices(group, tw, N), _texel_indices(group, tu, M), _texel_indices(group, tm, P)
+    slices = []
+    for k in ms:
+        texels = {}
+        for a, i in enumerate(ws):
+            column = _math(group, "ADD", _math(group, "MULTIPLY", k, float(N)), i)
+            u = _math(group, "DIVIDE", _math(group, "ADD", column, 0.5), float(N * P))
+            for b, j in enumerate(us):
+                v = _math(group, "SUBTRACT", 1.0, _math(group, "DIVIDE", _math(group, "ADD", j, 0.5), float(M)))
+                uv = group.nodes.new("ShaderNodeCombineXYZ")
+                group.links.new(u, uv.inputs[0])
+                group.links.new(v, uv.inputs[1])
+                texture = group.nodes.new("ShaderNodeTexImage")
+                texture.image, texture.interpolation, texture.extension = image, "Closest", "EXTEND"
+                group.links.new(uv.outputs[0], texture.inputs["Vector"])
+                texels[a, b] = texture.outputs["Color"]
+        top, bottom = _mix(group, texels[0, 0], texels[1, 0], fw), _mix(group, texels[0, 1], texels[1, 1], fw)
+        slices.append(_mix(group, top, bottom, fu))
+    group.links.new(_mix(group, slices[0], slices[1], fm), go.inputs["Colour"])
+    gi.location, go.location = (-400, 0), (1400, 0)
+    return group
+
+
+def look_group(mix_lut):
+    """`diffwash look`: the look's image terms, the mix LUT and the paper's relief at a pixel.
+
+    Inputs: the model's thicknesses there, the per-vertex mix and stroke value, and the Window coordinates,
+    which place the screen tile at the scene's pixels (texel (x mod Tw, y mod Th), y from the image's top row:
+    the shaders' `texelFetch`). The arithmetic is diffwash.look's (`pixel_terms` with the pixel's own value as
+    its local mean, then `paper_shading`), lowered to nodes by diffwash._blender.look_programs.
+    """
+    look = CONFIG["look"]
+    inputs = [("Wash", 1, 0.0), ("Unlit", 1, 0.0), ("Mix", 1, 0.0), ("Stroke", 1, 0.0), ("Window", 3, None)]
+    group, gi, go = new_group("diffwash look", "ShaderNodeTree", inputs, [("Colour", 3)])
+    th, tw = look["tile"]
+    window = group.nodes.new("ShaderNodeSeparateXYZ")
+    group.links.new(gi.outputs["Window"], window.inputs[0])
+    uv = group.nodes.new("ShaderNodeCombineXYZ")
+    group.links.new(_math(group, "MULTIPLY", window.outputs[0], CONFIG["width"] / tw), uv.inputs[0])
+    group.links.new(_math(group, "MULTIPLY", _math(group, "SUBTRACT", window.outputs[1], 1.0), CONFIG["height"] / th), uv.inputs[1])
+    screen = np.load(HERE / "blender_data.npz")["screen"]  # (Th, Tw, 6)
+    channels = {}
+    for part in range(2):
+        texture = group.nodes.new("ShaderNodeTexImage")
+        texture.image = float_image(f"diffwash screen tile {part}", screen[..., 3 * part:3 * part + 3])
+        texture.interpolation, texture.extension = "Closest", "REPEAT"
+        group.links.new(uv.outputs[0], texture.inputs["Vector"])
+        split = group.nodes.new("ShaderNodeSeparateColor")
+        group.links.new(texture.outputs["Color"], split.inputs[0])
+        for c in range(3):
+            channels[look["channels"][3 * part + c]] = split.outputs[c]
+    sources = {"wash": gi.outputs["Wash"], "unlit": gi.outputs["Unlit"], "mix": gi.outputs["Mix"],
+               "stroke": gi.outputs["Stroke"], **channels}
+    terms, width = build_program(group, look["terms"], sources, x0=400)
+    lut = group.nodes.new("ShaderNodeGroup")
+    lut.node_tree = mix_lut
+    group.links.new(terms["wash"], lut.inputs["Wash"])
+    group.links.new(terms["unlit"], lut.inputs["Unlit"])
+    group.links.new(gi.outputs["Mix"], lut.inputs["Mix"])
+    lut.location = (400 + 170 * (width + 1), 0)
+    relief, width2 = build_program(group, look["relief"], {"rgb": lut.outputs["Colour"], "shade": channels["shade"]},
+                                   x0=400 + 170 * (width + 2))
+    group.links.new(relief["rgb"], go.inputs["Colour"])
+    go.location = (400 + 170 * (width + width2 + 3), 0)
     return group
 
 
@@ -282,8 +381,8 @@ def _turned(tree, vector, backfacing):
     return scale.outputs[0]
 
 
-def per_pixel_material(watercolour):
-    mat = _new_material("diffwash per-pixel")
+def per_pixel_material(watercolour, name="diffwash per-pixel"):
+    mat = _new_material(name)
     tree = mat.node_tree
     geometry = tree.nodes.new("ShaderNodeNewGeometry")
     normal = tree.nodes.new("ShaderNodeAttribute")
@@ -298,6 +397,57 @@ def per_pixel_material(watercolour):
     _emit(mat, group.outputs["Colour"], geometry.outputs["Backfacing"])
     group.location, geometry.location, normal.location, to_world.location = (400, 0), (0, 300), (-200, 0), (100, 0)
     return mat
+
+
+def look_material(watercolour, look):
+    """`diffwash look`: the thicknesses per pixel (`diffwash watercolour`), then the look's per-pixel effects."""
+    mat = per_pixel_material(watercolour, "diffwash look")
+    tree = mat.node_tree
+    model = next(n for n in tree.nodes if n.type == "GROUP")
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = look
+    for name in ("Wash", "Unlit"):
+        tree.links.new(model.outputs[name], node.inputs[name])
+    for name, attribute in (("Mix", "diffwash_mix"), ("Stroke", "diffwash_stroke")):
+        a = tree.nodes.new("ShaderNodeAttribute")
+        a.attribute_type, a.attribute_name = "GEOMETRY", attribute
+        tree.links.new(a.outputs["Fac"], node.inputs[name])
+    coordinates = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coordinates.outputs["Window"], node.inputs["Window"])
+    emission = next(n for n in tree.nodes if n.type == "EMISSION")
+    tree.links.new(node.outputs["Colour"], emission.inputs["Color"])
+    node.location = (650, 0)
+    return mat
+
+
+def build_backdrop(camera, look):
+    """The paper where no mesh is, with its relief: a quad filling the view just inside the far clip plane (behind
+    the mesh, whose bounding sphere the clip planes enclose), drawn by `diffwash look` at zero thickness."""
+    import bpy
+    from mathutils import Matrix
+
+    c = CONFIG["camera"]
+    d = 0.995 * c["far"]
+    h = 1.5 * d * np.tan(np.radians(c["fov_y"]) / 2)
+    w = h * CONFIG["width"] / CONFIG["height"]
+    mesh = bpy.data.meshes.new("diffwash paper")
+    mesh.from_pydata([(-w, -h, -d), (w, -h, -d), (w, h, -d), (-w, h, -d)], [], [(0, 1, 2, 3)])
+    obj = bpy.data.objects.new("diffwash paper", mesh)
+    obj.matrix_world = Matrix(c["matrix_world"])
+    mat = _new_material("diffwash paper")
+    tree = mat.node_tree
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = look
+    coordinates = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coordinates.outputs["Window"], node.inputs["Window"])
+    emission = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(node.outputs["Colour"], emission.inputs["Color"])
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(emission.outputs[0], out.inputs["Surface"])
+    mat.cycles.emission_sampling = "NONE"
+    mesh.materials.append(mat)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
 
 
 def per_vertex_material(lut):
@@ -384,6 +534,9 @@ def build_mesh():
     mesh.update(calc_edges=True)
     attribute = mesh.attributes.new("diffwash_normal", "FLOAT_VECTOR", "POINT")
     attribute.data.foreach_set("vector", normals.astype(np.float32).ravel())
+    if CONFIG["look"]:  # the look's pigment mix and stroke value per vertex
+        for name, key in (("diffwash_mix", "look_mix"), ("diffwash_stroke", "look_stroke")):
+            mesh.attributes.new(name, "FLOAT", "POINT").data.foreach_set("value", data[key].astype(np.float32).ravel())
     mesh.shade_smooth()
     obj = bpy.data.objects.new("diffwash", mesh)
     bpy.context.scene.collection.objects.link(obj)
@@ -459,6 +612,14 @@ def build(shading):
     lut = lut_group(lut_image())
     watercolour = watercolour_group(thickness_group("ShaderNodeTree", "diffwash thickness"), lut)
     materials = {"per-pixel": per_pixel_material(watercolour), "per-vertex": per_vertex_material(lut)}
+    if CONFIG["look"]:  # the look computes the thicknesses per pixel, as its geometry pass does
+        look = look_group(mix_lut_group())
+        materials["per-pixel"] = look_material(watercolour, look)
+        shading = "per-pixel"
+        build_backdrop(camera, look)
+        if CONFIG["look"]["not_carried"]:
+            print("blender_scene.py: the watercolour look's " + ", ".join(CONFIG["look"]["not_carried"]) + " are not "
+                  "carried by shader nodes (docs/blender.md); its paper, unevenness, strokes and mix are")
     obj.data.materials.append(materials[shading])
     modifier = per_vertex_modifier(obj, camera)
     modifier.show_viewport = modifier.show_render = shading == "per-vertex"

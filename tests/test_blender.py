@@ -268,6 +268,7 @@ def test_blender_draws_the_looks_per_pixel_effects(run_cli, tmp_path):
     full = showcase(tmp_path, 256)
     r = run_cli("export", full, "-o", tmp_path / "out", "--target", "blender")
     assert r.returncode == 0, r.stderr
+    assert "not its edges, shadow, hatching (beyond shader nodes" in r.stdout, r.stdout
     said = run_script(tmp_path / "out", "--render", tmp_path / "blender.png").stdout
     assert "edges, shadow, hatching are not carried" in said, said
     drew = "CYCLES" if "with CYCLES" in said else "EEVEE"

@@ -9,6 +9,14 @@
 // runner.draw(values, light, size) draws a frame of `size` = [width, height] with every uniform in `values`
 // (row-major matrices); runner.setTexture(name, data) replaces an input texture (data as LOOK.textures holds it).
 
+// A compiled shader, or fail(message) with the compiler's log (the plain model's programs use it too).
+function compileShader(gl, type, source, name, fail) {
+  const sh = gl.createShader(type);
+  gl.shaderSource(sh, source); gl.compileShader(sh);
+  if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) fail(name + ": " + gl.getShaderInfoLog(sh));
+  return sh;
+}
+
 function createLookRunner(gl, LOOK, mesh, fail) {
   const v3sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
   const v3scale = (a, s) => [a[0] * s, a[1] * s, a[2] * s];
@@ -74,12 +82,7 @@ function createLookRunner(gl, LOOK, mesh, fail) {
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     return {target: gl.TEXTURE_2D, tex: tex, fbo: fbo, size: spec.size};
   }
-  function compile(type, source, name) {
-    const sh = gl.createShader(type);
-    gl.shaderSource(sh, source); gl.compileShader(sh);
-    if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) fail(name + ": " + gl.getShaderInfoLog(sh));
-    return sh;
-  }
+  const compile = (type, source, name) => compileShader(gl, type, source, name, fail);
   function lookProgram(pass) {
     const p = gl.createProgram();
     gl.attachShader(p, compile(gl.VERTEX_SHADER, LOOK.shaders[pass.vertex], pass.vertex));

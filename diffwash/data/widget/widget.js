@@ -49,12 +49,7 @@ const view = (bytes, start, count, Type) => new Type(bytes.slice(start, start + 
 function createGL(canvas, config) {
   const gl = canvas.getContext("webgl2", {antialias: false, alpha: false, preserveDrawingBuffer: true, premultipliedAlpha: false});
   if (!gl) throw new Error("diffwash.widget needs WebGL2");
-  const compile = (type, source, name) => {
-    const sh = gl.createShader(type);
-    gl.shaderSource(sh, source); gl.compileShader(sh);
-    if (!gl.getShaderParameter(sh, gl.COMPILE_STATUS)) throw new Error(name + ": " + gl.getShaderInfoLog(sh));
-    return sh;
-  };
+  const compile = (type, source, name) => compileShader(gl, type, source, name, (msg) => { throw new Error(msg); });  // look-runner.js
   const programs = {};
   for (const mode in config.shaders) {
     const src = config.shaders[mode], p = gl.createProgram();

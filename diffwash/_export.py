@@ -27,7 +27,7 @@
   (`diffwash._blender`); its shader files are GLSL 3.30. It draws the model
   with the colour LUT (`kind="rt"` is refused), and a watercolour look's per-pixel
   effects (paper, unevenness, strokes, mix); edge darkening, the own shadow and
-  hatching it cannot carry, and the script says so when it builds the scene.
+  hatching it cannot carry: a scene that turns them on is refused unless `partial`.
 
 The folder appears whole or not at all: everything is written into a temporary
 folder beside it, which is then renamed.
@@ -145,9 +145,16 @@ def _is_export(folder: Path) -> bool:
     return (folder / "viewer.html").is_file() and any(folder.glob("*.json"))
 
 
-def _check_blender(scene: Scene, kind: str) -> None:
-    """Refuse what the Blender target cannot draw: the R/T LUT. (The watercolour look is carried as far as shader
-    nodes reach: `diffwash._blender.LOOK_NOT_CARRIED`.)"""
+def _check_blender(scene: Scene, kind: str, partial: bool) -> None:
+    """Refuse what the Blender target cannot draw: the R/T LUT, and, unless `partial`, a watercolour look with an
+    effect beyond shader nodes (`diffwash._blender.LOOK_NOT_CARRIED`; the rest of the look is carried)."""
+    from ._blender import LOOK_NOT_CARRIED
+
+    left = [k for k in LOOK_NOT_CARRIED if scene.watercolour is not None and k in scene.watercolour.effects]
+    if left and not partial:
+        raise DiffwashError(f"Blender's shader nodes cannot draw the look's {', '.join(left)} (docs/blender.md): turn "
+                            "them off in the scene, or export the rest of the look with --partial (Python: "
+                            "partial=True)", file=scene.path, field="watercolour")  # fmt: skip
     if kind != "colour":
         raise DiffwashError("the Blender target reads the colour LUT; R and T over a paper uniform (--rt) are for "
                             "the GLSL targets", field="rt")  # fmt: skip
@@ -163,6 +170,7 @@ def export(
     fmt: str = "png16",
     kind: str = "colour",
     overwrite: bool = False,
+    partial: bool = False,
 ) -> list[Path]:
     """Write the LUT, its sidecar, the shaders, the mesh and the viewer into `folder`.
 
@@ -181,6 +189,8 @@ def export(
     - `fmt`: LUT file format: `"png16"`, `"png8"`, `"exr"` or `"npy"`.
     - `kind`: `"colour"` or `"rt"` (R and T, composited over a `paper` uniform).
     - `overwrite`: replace an existing export in `folder`.
+    - `partial`: the Blender target, a scene whose look turns on effects shader nodes cannot draw (edge darkening,
+      the own shadow, hatching): export the rest of the look instead of refusing the scene.
 
     A scene with a watercolour look also gets `look/` (its passes for
     `target`, `diffwash._look_export`), and the viewer draws the look.
@@ -197,7 +207,7 @@ def export(
     scene = _scene_of(scene)
     params = scene.params if params is None else params
     if target == "blender":
-        _check_blender(scene, kind)
+        _check_blender(scene, kind, partial)
     folder = Path(folder)
     if folder.exists():
         if not folder.is_dir():

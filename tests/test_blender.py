@@ -129,7 +129,12 @@ def test_bad_input(run_cli, tmp_path):
     one_line(run_cli("export", scene, "-o", tmp_path / "out", "--target", "maya"), "maya")
     one_line(run_cli("export", scene, "-o", tmp_path, "--target", "blender"), "--output")
     one_line(run_cli("export", scene, "-o", tmp_path / "out", "--target", "blender", "--rt"), "rt")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["knot.json"]
+    # A look with effects beyond shader nodes: refused unless --partial, which only the Blender target takes.
+    look = scene_file(tmp_path, "look.json", watercolour={"shadow": True, "hatching": False})
+    one_line(run_cli("export", look, "-o", tmp_path / "out", "--target", "blender"), "look.json", "watercolour", "edges, shadow",
+             "--partial")
+    one_line(run_cli("export", scene, "-o", tmp_path / "out", "--partial"), "--partial", "blender")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["knot.json", "look.json"]
 
 
 def showcase(folder, size, drop=()):
@@ -266,7 +271,7 @@ def test_blender_draws_the_looks_per_pixel_effects(run_cli, tmp_path):
     unevenness, strokes and mix as `diffwash render` draws them with the effects shader nodes cannot carry (edge
     darkening, the own shadow, hatching) turned off; the script names those it leaves out."""
     full = showcase(tmp_path, 256)
-    r = run_cli("export", full, "-o", tmp_path / "out", "--target", "blender")
+    r = run_cli("export", full, "-o", tmp_path / "out", "--target", "blender", "--partial")
     assert r.returncode == 0, r.stderr
     assert "not its edges, shadow, hatching (beyond shader nodes" in r.stdout, r.stdout
     said = run_script(tmp_path / "out", "--render", tmp_path / "blender.png").stdout

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import diffwash
 
+from .. import DiffwashError
 from .. import io as dio
 from .bake import parse_lut_size
 
@@ -29,14 +30,20 @@ def add_arguments(p) -> None:
     p.add_argument("--format", choices=list(diffwash.LUT_FORMATS), default="png16", help="LUT file format (default: %(default)s)")
     p.add_argument("--rt", action="store_true", help="export the R/T LUT and shaders that composite over a paper uniform")
     p.add_argument("--overwrite", action="store_true", help="replace a previous export in DIR")
+    p.add_argument("--partial", action="store_true",
+                   help="--target blender: export a watercolour look whose edges, shadow or hatching shader nodes cannot "
+                        "draw without them (else such a scene is refused)")  # fmt: skip
 
 
 def run(args) -> int:
+    if args.partial and args.target != "blender":
+        raise DiffwashError("goes with --target blender (the other targets draw the whole look)", field="--partial")
     size = parse_lut_size(args.size)
     dio.refuse_overwriting_inputs({"--output": args.output}, [args.scene, *diffwash.referenced_files(args.scene)], folders=["--output"])
     scene = diffwash.load_scene(args.scene)
     written = diffwash.export(
-        scene, args.output, target=args.target, size=size, fmt=args.format, kind="rt" if args.rt else "colour", overwrite=args.overwrite
+        scene, args.output, target=args.target, size=size, fmt=args.format, kind="rt" if args.rt else "colour", overwrite=args.overwrite,
+        partial=args.partial,
     )
     out = Path(args.output)
     top = [w.name for w in written if w.parent == out]

@@ -27,6 +27,7 @@ from ._glsl import uniform_values as uniform_values
 from ._mixture import Mixture as Mixture
 from ._choices import SHADING_MODES as SHADING_MODES
 from ._choices import EXPORT_TARGETS as EXPORT_TARGETS
+from ._choices import BLENDER_LEAVES_OUT as BLENDER_LEAVES_OUT
 from ._choices import LUT_FORMATS as LUT_FORMATS
 from ._render import Visibility as Visibility
 from ._render import clear_visibility_cache as clear_visibility_cache

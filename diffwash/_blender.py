@@ -42,9 +42,12 @@ from typing import Any
 
 import numpy as np
 
+from . import look as wl
 from . import shading
+from ._choices import BLENDER_LEAVES_OUT
 from ._errors import DiffwashError, FailureError
 from ._glsl import _symbol, _uniform_params
+from ._look_glsl import MIX_LUT_SIZE, mix_lut
 from ._version import __version__
 from ._xp import Expr, _memo
 from .lut import Lut
@@ -316,13 +319,9 @@ def _evaluate_node(op: str, operation: str | None, args: list[Any]) -> Any:
 # --- the script and its data ------------------------------------------------------------------------
 
 
-#: The watercolour look's effects that shader nodes cannot carry, and why: each needs more than the pixel's own
-#: values (the look's other effects are per pixel and are carried: `look_programs`).
-LOOK_NOT_CARRIED = {
-    "edges": "edge darkening needs the glazes' local mean, a blur over the whole image",
-    "shadow": "the object's own shadow needs a depth map drawn from the light",
-    "hatching": "hatching reads a tonal art map at a level of detail per pixel, from screen-space derivatives",
-}
+#: The watercolour look's effects that shader nodes cannot carry, and why (`diffwash.BLENDER_LEAVES_OUT`; the
+#: look's other effects are per pixel and are carried: `look_programs`).
+LOOK_NOT_CARRIED = BLENDER_LEAVES_OUT
 #: The per-pixel inputs of the look's image terms in Blender (`look_programs`): the thicknesses, the per-vertex mix
 #: and stroke value, and the screen tile's channels.
 _LOOK_TERMS = ("wash", "unlit", "mix", "stroke", "paper", "turbulence_wash", "dispersion_wash", "turbulence_unlit",
@@ -333,8 +332,6 @@ def look_programs(scene: Any) -> dict[str, Any]:
     """The watercolour look's per-pixel arithmetic lowered to Blender nodes (`node_program`), the scene's look values
     and pigments in it as constants: `terms` (`diffwash.look.pixel_terms` at a pixel whose local mean is its own
     value: no edge darkening; outputs `wash`, `unlit`) and `relief` (`diffwash.look.paper_shading`: `rgb`)."""
-    from . import look as wl
-
     wc = scene.watercolour
     look, pigments = wc.look, wc.pigments
 
@@ -347,12 +344,9 @@ def look_programs(scene: Any) -> dict[str, Any]:
 
 
 def _look_config(scene: Any, p: Any) -> dict[str, Any]:
-    from ._look_glsl import MIX_LUT_SIZE, mix_lut
-    from .look import CHANNELS
-
     wc = scene.watercolour
     _, wash_max, unlit_max = mix_lut(scene, p)
-    return {**look_programs(scene), "channels": list(CHANNELS), "tile": list(np.asarray(wc.screen).shape[:2]),
+    return {**look_programs(scene), "channels": list(wl.CHANNELS), "tile": list(np.asarray(wc.screen).shape[:2]),
             "mix_lut": {"size": list(MIX_LUT_SIZE), "wash_max": wash_max, "unlit_max": unlit_max},
             "not_carried": [k for k in LOOK_NOT_CARRIED if k in wc.effects]}  # fmt: skip
 
@@ -412,8 +406,6 @@ def write_blender(folder: Path, scene: Any, lut: Lut, *, params: Any = None, ble
     mesh = scene.mesh
     look = {}
     if scene.watercolour is not None:  # the look's mix LUT, screen tile, and per-vertex mix and stroke value
-        from ._look_glsl import mix_lut
-
         wc, n = scene.watercolour, len(np.asarray(mesh.vertices))
         look = {"mix_lut": mix_lut(scene, scene.params if params is None else params)[0],
                 "screen": np.asarray(wc.screen, np.float32),

@@ -44,6 +44,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import equinox as eqx
 import numpy as np
 
 from . import lut as _lut
@@ -58,6 +59,7 @@ from ._scene import Scene, load_scene
 from ._version import __version__
 from ._viewer import look_config, look_runner_source
 from .colorimetry import to_display
+from .look import leaf_specs, look_uniforms
 from .pigments import Pigment
 from .shading import CONSTANTS, Params, paper_colour
 
@@ -125,16 +127,12 @@ def _constant_sliders(p: Params) -> list[dict[str, Any]]:
 
 def _look_leaves(scene: Scene) -> dict[str, float]:
     """The look's leaves a slider moves: the fittable ones of the effects the scene turns on (value > 0)."""
-    from .look import leaf_specs
-
     look = scene.watercolour.look
     return {name: float(np.asarray(getattr(look, name))) for name, spec in leaf_specs().items()
             if spec.fit and float(np.asarray(getattr(look, name))) > 0}  # fmt: skip
 
 
 def _look_sliders(scene: Scene) -> list[dict[str, Any]]:
-    from .look import leaf_specs
-
     specs = leaf_specs()
     out = []
     for name, value in _look_leaves(scene).items():
@@ -147,10 +145,6 @@ def _look_sliders(scene: Scene) -> list[dict[str, Any]]:
 
 def _with_look(scene: Scene, values: dict[str, Any]) -> Scene:
     """`scene` with its look's leaves set to `values` (checked: known leaves, finite, >= 0, within their bound)."""
-    import equinox as eqx
-
-    from .look import leaf_specs
-
     if not isinstance(values, dict):
         raise DiffwashError(f"must map leaves to numbers, got {values!r}", field="look")
     if scene.watercolour is None:
@@ -347,8 +341,6 @@ class _Widget:
     def _send_look_uniforms(self, mix_range: tuple[float, float] | None = None) -> None:
         """The look's uniforms for the current leaves (`look.look_uniforms`: the edge blur's weights follow its width)
         and the mix LUT's range."""
-        from .look import look_uniforms
-
         scene = _with_look(self._scene, self.look)
         wc = scene.watercolour
         u = look_uniforms(wc.look, wc.pigments, height=scene.height)

@@ -421,7 +421,9 @@ def test_front_end_frame_rate_and_latency_on_the_knot(browser, tmp_path):
         # figures are printed and held only to a tenth of a second per frame's worth of slack, to catch breakage.
         load = os.getloadavg()[0] / (os.cpu_count() or 1)
         print(f"(load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)")
-        if load <= 1:
+        # Beside another pytest-xdist worker the page shares the cores with it, whatever the load average (a
+        # one-minute mean) says yet.
+        if load <= 1 and not os.environ.get("PYTEST_XDIST_WORKER"):
             assert fps >= 15 and raf >= 15
             assert np.median(latencies) <= 150
         else:

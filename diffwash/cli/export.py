@@ -62,9 +62,7 @@ def run(args) -> int:
         script = out / "blender_scene.py"
         print(f"Blender: python {script} --render OUT.png (with bpy installed), or blender -b -P {script} -- --render OUT.png"
               + ("; or open " + str(out / "scene.blend") if "scene.blend" in blender else ""))
-        from .._blender import LOOK_NOT_CARRIED
-
-        left = [k for k in LOOK_NOT_CARRIED if scene.watercolour is not None and k in scene.watercolour.effects]
+        left = [k for k in diffwash.BLENDER_LEAVES_OUT if scene.watercolour is not None and k in scene.watercolour.effects]
         if left:
             print(f"Blender draws the watercolour look's paper, unevenness, strokes and mix, not its {', '.join(left)} "
                   "(beyond shader nodes: docs/blender.md)")

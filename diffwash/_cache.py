@@ -4,20 +4,27 @@ JAX arrays are immutable, so one that is the same object has the same values:
 it is keyed by identity (the cache holds a reference, so the identity is not
 reused while the entry lives). NumPy arrays and Python numbers are mutable or
 host values: they are keyed by their bytes (no device transfer is involved).
+Within one call that looks up several caches with the same arrays (a render:
+its visibility, then the look's light pass), `same_arrays()` hashes each array
+once.
 """
 
 from __future__ import annotations
 
 import collections
+import contextlib
 import os
+import threading
 import zlib
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Iterator
 from typing import Any
 
 import jax
 import numpy as np
 
-__all__ = ["leaf_key", "tree_key", "LRU", "enable_compilation_cache"]
+__all__ = ["leaf_key", "tree_key", "same_arrays", "LRU", "enable_compilation_cache"]
+
+_local = threading.local()
 
 
 def enable_compilation_cache() -> None:
@@ -38,12 +45,30 @@ def enable_compilation_cache() -> None:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
+@contextlib.contextmanager
+def same_arrays() -> Iterator[None]:
+    """Within the block, a NumPy array's key is computed once per array object (the caller promises not to change
+    the arrays meanwhile): the block holds each array it keyed, so no identity is reused in it."""
+    outer = getattr(_local, "memo", None)
+    _local.memo = {} if outer is None else outer
+    try:
+        yield
+    finally:
+        _local.memo = outer
+
+
 def leaf_key(x: Any) -> Hashable:
     """A hashable key for one array leaf: its identity if a JAX array, else its shape, dtype and bytes."""
     if isinstance(x, jax.Array):
         return ("jax", id(x))
+    memo = getattr(_local, "memo", None)
+    if memo is not None and isinstance(x, np.ndarray) and id(x) in memo:
+        return memo[id(x)][1]
     a = np.ascontiguousarray(np.asarray(x))
-    return ("np", a.shape, a.dtype.str, zlib.crc32(a.view(np.uint8).reshape(-1)))
+    key = ("np", a.shape, a.dtype.str, zlib.crc32(a.view(np.uint8).reshape(-1)))
+    if memo is not None and isinstance(x, np.ndarray):
+        memo[id(x)] = (x, key)
+    return key
 
 
 def tree_key(*trees: Any) -> tuple[tuple[Hashable, ...], list[Any]]:

@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from conftest import knot_scene
+from conftest import ROOT, knot_scene
 
 import diffwash
 from diffwash import _render
@@ -88,3 +88,37 @@ def test_visibility_of_device_arrays_is_keyed_by_identity_without_reading_them()
     first = _render._cache.values()[0]
     diffwash.render(device_scene, dataclasses.replace(device_scene.params, gain=0.3))
     assert len(_render._cache) == 1 and _render._cache.values()[0] is first
+
+
+def test_a_render_hashes_each_host_array_once(monkeypatch):
+    """A look render keys three caches with the mesh's NumPy arrays (its visibility, the light's depth pass, the
+    shadow at the vertices): within one render each array's bytes are hashed once (`_cache.same_arrays`); a change
+    between renders still gives a new key."""
+    import zlib
+
+    from diffwash import _cache
+
+    hashed = []
+    crc = zlib.crc32
+    monkeypatch.setattr(_cache.zlib, "crc32", lambda b: hashed.append(len(b)) or crc(b))
+    x = np.arange(12.0)
+    assert leaf_key(x) == leaf_key(x) and len(hashed) == 2  # outside a render: hashed each time
+    with _cache.same_arrays():
+        first = leaf_key(x)
+        assert leaf_key(x) == first and len(hashed) == 3
+    x[0] = 5.0
+    assert leaf_key(x) != first
+    scene = diffwash.load_scene(ROOT / "data" / "scenes" / "watercolour.json", size=(32, 32))
+    big = min(np.asarray(a).nbytes for a in (scene.mesh.vertices, scene.mesh.faces, scene.mesh.normals))
+
+    def large_hashes():
+        diffwash.render(scene)
+        hashed.clear()
+        diffwash.render(scene)
+        return sum(n >= big for n in hashed)
+
+    once = large_hashes()
+    import contextlib
+
+    monkeypatch.setattr(_cache, "same_arrays", contextlib.nullcontext)
+    assert once <= 3 < large_hashes(), once  # vertices, faces, normals once each; without the block, again per cache

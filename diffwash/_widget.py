@@ -25,7 +25,7 @@ both; the shaders, pass graph and textures of `diffwash._look_export`), with
 a slider for each strength, width and amplitude of the effects the scene
 turns on (`look`: leaf -> value). Moving one sets its uniform at once; Python
 answers with the look's uniforms (`look_uniforms`: the edge blur's weights
-follow the width). A pigment or range change re-bakes the look's 3D mix LUT
+follow the width). A pigment, paper or range change re-bakes the look's 3D mix LUT
 too (`mix_lut`, half floats). The checkbox shows the plain model instead.
 The export button (or `widget.export(folder)`) writes the tuned scene as
 `diffwash export` does, the tuned look included.

@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from conftest import ROOT, knot_scene
+from conftest import knot_scene
 
 import diffwash
 from diffwash import _render
@@ -90,7 +90,7 @@ def test_visibility_of_device_arrays_is_keyed_by_identity_without_reading_them()
     assert len(_render._cache) == 1 and _render._cache.values()[0] is first
 
 
-def test_a_render_hashes_each_host_array_once(monkeypatch):
+def test_a_render_hashes_each_host_array_once(monkeypatch, tmp_path):
     """A look render keys three caches with the mesh's NumPy arrays (its visibility, the light's depth pass, the
     shadow at the vertices): within one render each array's bytes are hashed once (`_cache.same_arrays`); a change
     between renders still gives a new key."""
@@ -108,7 +108,9 @@ def test_a_render_hashes_each_host_array_once(monkeypatch):
         assert leaf_key(x) == first and len(hashed) == 3
     x[0] = 5.0
     assert leaf_key(x) != first
-    scene = diffwash.load_scene(ROOT / "data" / "scenes" / "watercolour.json", size=(32, 32))
+    from test_look_preview import _showcase
+
+    scene = diffwash.load_scene(_showcase(tmp_path, size=32))  # every effect, on the 10k-triangle knot
     big = min(np.asarray(a).nbytes for a in (scene.mesh.vertices, scene.mesh.faces, scene.mesh.normals))
 
     def large_hashes():

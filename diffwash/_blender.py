@@ -47,14 +47,14 @@ from . import shading
 from ._choices import BLENDER_LEAVES_OUT
 from ._errors import DiffwashError, FailureError
 from ._glsl import _symbol, _uniform_params
-from ._look_glsl import MIX_LUT_SIZE, mix_lut
+from ._look_glsl import MIX_LUT_SIZE, mix_lut, mix_lut_range
 from ._version import __version__
 from ._xp import Expr, _memo
 from .lut import Lut
 from .shading import CONSTANTS
 
 __all__ = ["BLENDER_FILES", "BLENDER_SCRIPT", "BLENDER_DATA", "BLENDER_FILE", "node_program", "thickness_program",
-           "look_programs", "LOOK_NOT_CARRIED", "evaluate_program", "blender_config", "blender_script", "write_blender",
+           "look_programs", "leaves_out", "evaluate_program", "blender_config", "blender_script", "write_blender",
            "bpy_available"]  # fmt: skip
 
 #: The script, its data, and the `.blend` written where `bpy` is importable.
@@ -319,9 +319,13 @@ def _evaluate_node(op: str, operation: str | None, args: list[Any]) -> Any:
 # --- the script and its data ------------------------------------------------------------------------
 
 
-#: The watercolour look's effects that shader nodes cannot carry, and why (`diffwash.BLENDER_LEAVES_OUT`; the
-#: look's other effects are per pixel and are carried: `look_programs`).
-LOOK_NOT_CARRIED = BLENDER_LEAVES_OUT
+def leaves_out(scene: Any) -> list[str]:
+    """The effects of the scene's look that shader nodes cannot carry (`diffwash.BLENDER_LEAVES_OUT`, in its
+    order); the look's other effects are per pixel and are carried (`look_programs`)."""
+    wc = scene.watercolour
+    return [] if wc is None else [k for k in BLENDER_LEAVES_OUT if k in wc.effects]
+
+
 #: The per-pixel inputs of the look's image terms in Blender (`look_programs`): the thicknesses, the per-vertex mix
 #: and stroke value, and the screen tile's channels.
 _LOOK_TERMS = ("wash", "unlit", "mix", "stroke", "paper", "turbulence_wash", "dispersion_wash", "turbulence_unlit",
@@ -344,11 +348,10 @@ def look_programs(scene: Any) -> dict[str, Any]:
 
 
 def _look_config(scene: Any, p: Any) -> dict[str, Any]:
-    wc = scene.watercolour
-    _, wash_max, unlit_max = mix_lut(scene, p)
-    return {**look_programs(scene), "channels": list(wl.CHANNELS), "tile": list(np.asarray(wc.screen).shape[:2]),
+    wash_max, unlit_max = mix_lut_range(p)
+    return {**look_programs(scene), "channels": list(wl.CHANNELS), "tile": list(np.asarray(scene.watercolour.screen).shape[:2]),
             "mix_lut": {"size": list(MIX_LUT_SIZE), "wash_max": wash_max, "unlit_max": unlit_max},
-            "not_carried": [k for k in LOOK_NOT_CARRIED if k in wc.effects]}  # fmt: skip
+            "not_carried": leaves_out(scene)}  # fmt: skip
 
 
 def _camera_to_world(camera: Any) -> list[list[float]]:

@@ -49,8 +49,8 @@ from ._io import atomic_folder
 from ._lazy import lazy
 from ._look_export import LOOK_FOLDER, LookExport, look_export, retarget, write_look
 from ._scene import Mesh, Scene, load_scene, scene_to_dict
-from ._blender import write_blender
-from ._choices import BLENDER_LEAVES_OUT, EXPORT_TARGETS
+from ._blender import leaves_out, write_blender
+from ._choices import EXPORT_TARGETS
 from ._threejs import write_threejs
 from ._version import __version__
 from ._viewer import viewer_html
@@ -147,8 +147,8 @@ def _is_export(folder: Path) -> bool:
 
 def _check_blender(scene: Scene, kind: str, partial: bool) -> None:
     """Refuse what the Blender target cannot draw: the R/T LUT, and, unless `partial`, a watercolour look with an
-    effect beyond shader nodes (`BLENDER_LEAVES_OUT`; the rest of the look is carried)."""
-    left = [k for k in BLENDER_LEAVES_OUT if scene.watercolour is not None and k in scene.watercolour.effects]
+    effect beyond shader nodes (`diffwash._blender.leaves_out`; the rest of the look is carried)."""
+    left = leaves_out(scene)
     if left and not partial:
         raise DiffwashError(f"Blender's shader nodes cannot draw the look's {', '.join(left)} (docs/blender.md): turn "
                             "them off in the scene, or export the rest of the look with --partial (Python: "

@@ -57,6 +57,7 @@ __all__ = [
     "glsl_hatching",
     "glsl_mix_lut",
     "mix_lut",
+    "mix_lut_range",
     "glsl_surface",
     "glsl_final_pass",
     "geometry_sources",
@@ -543,11 +544,17 @@ def _glaze_b(args: Any, w: Any, u: Any, m: Any) -> Any:
     return wl.glaze_mix(p, wash_b, unlit_b, w, u, m)
 
 
+def mix_lut_range(p: Any) -> tuple[float, float]:
+    """The wash and unlit thickness the look's 3D mix LUT covers for shading `Params` `p` (`MIX_LUT_RANGE` times
+    the 2D LUT's)."""
+    return MIX_LUT_RANGE * float(p.wash_max), MIX_LUT_RANGE * float(p.unlit_max)
+
+
 def mix_lut(scene: Any, p: Any) -> tuple[np.ndarray, float, float]:
     """The look's 3D mix LUT for shading `Params` `p` (float32, `look.bake_mix_lut`'s layout) and its wash and unlit
-    ranges. One function for every call, so a widget's re-bake reuses its compiled program."""
+    ranges (`mix_lut_range`). One function for every call, so a widget's re-bake reuses its compiled program."""
     wc = scene.watercolour
-    wash_max, unlit_max = MIX_LUT_RANGE * float(p.wash_max), MIX_LUT_RANGE * float(p.unlit_max)
+    wash_max, unlit_max = mix_lut_range(p)
     wash_b = p.wash if wc.wash_b is None else wc.wash_b
     unlit_b = p.unlit if wc.unlit_b is None else wc.unlit_b
     table = wl.bake_mix_lut(_glaze_b, (p, wash_b, unlit_b), MIX_LUT_SIZE, wash_max=wash_max, unlit_max=unlit_max)

@@ -50,8 +50,7 @@ from jaxtyping import Array, ArrayLike, Bool, Float, Int
 from . import _watercolour, shading
 from ._antialias import Silhouettes, silhouettes
 from ._antialias import antialias as antialias_image
-from . import _cache as _cache_module
-from ._cache import LRU
+from ._cache import LRU, same_arrays
 from ._errors import DiffwashError
 from ._camera import Camera
 from ._interpolate import barycentrics, interpolate
@@ -387,7 +386,7 @@ def _render(scene, params, visibility, antialias, alpha):
     if params is None:
         params = scene.params
     if getattr(scene, "watercolour", None) is not None:  # the look's edge blur needs the whole image: no strips
-        with _cache_module.same_arrays():  # the mesh's arrays key the visibility and the light pass: hash them once
+        with same_arrays():  # the mesh's arrays key the visibility and the light pass: hash them once
             rgba = _render_look(scene, params, visibility, antialias)
         return rgba if alpha else rgba[..., :-1]
     if visibility is None and scene.width * scene.height > TILE_PIXELS and is_concrete(_geometry(scene)):

@@ -54,6 +54,7 @@ from ._glsl import SHADING_MODES, shader_file_names, shader_sources
 from ._lazy import lazy
 from ._look_export import look_export
 from ._look_glsl import mix_lut as _mix_lut
+from ._look_glsl import mix_lut_range
 from ._mixture import Mixture
 from ._scene import Scene, load_scene
 from ._version import __version__
@@ -203,7 +204,6 @@ def _config(scene: Scene, params: Params, lut_size: int, look: Any = None) -> di
         "radius": float(np.max(np.linalg.norm(vertices - centre, axis=1))),
         "camera": {k: np.asarray(getattr(cam, k), np.float64).tolist() for k in ("eye", "target", "up", "fov_y", "near", "far")},
         "two_sided": not scene.cull_backfaces,
-        "background": to_display(np.asarray(paper_colour(params), np.float64)).tolist(),
         "lut_size": lut_size,
         "constants": _constant_sliders(params),
         "pigments": {g: {"name": getattr(params, g).name, "sliders": _pigment_sliders(getattr(params, g))} for g in ("wash", "unlit")},
@@ -259,10 +259,8 @@ def _params(base: Params, wash: dict, unlit: dict, constants: dict, light: list,
     if direction.shape != (3,) or not np.all(np.isfinite(direction)) or not np.any(direction):
         raise DiffwashError(f"must be 3 finite numbers, not all 0, got {light!r}", field="light")
     if paper:  # an RGB scene's paper (a spectral one has no paper slider: [])
-        try:
-            reflectance = np.asarray(paper, np.float64) if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in paper) else None
-        except TypeError:
-            reflectance = None
+        numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in paper)
+        reflectance = np.asarray(paper, np.float64) if numbers else None
         if _paper_sliders(base) is None or reflectance is None or reflectance.shape != (3,) or not np.all((reflectance >= 0) & (reflectance <= 1)):
             raise DiffwashError(f"must be 3 reflectances in [0, 1] (an RGB scene's paper), got {paper!r}", field="paper")
         c["paper"] = reflectance
@@ -320,33 +318,29 @@ class _Widget:
     def rebake(self) -> _lut.Lut:
         """Bake the LUT for the current values and send it to the front end; `bake_ms` is the time it took."""
         start = time.perf_counter()
-        table = _lut.bake(self.params, self._lut_size)
+        params = self.params
+        table = _lut.bake(params, self._lut_size)
         data = lut_bytes(table)
+        look = None if self._scene.watercolour is None else _mix_lut(self._scene, params)[0]  # the look's 3D mix LUT
         elapsed = 1000 * (time.perf_counter() - start)
-        look = None
-        if self._scene.watercolour is not None:  # the look's 3D mix LUT, for the same values
-            look = _mix_lut(self._scene, self.params)
-            elapsed = 1000 * (time.perf_counter() - start)
         self._table = table
         with self.hold_sync():
             self.lut_range = [float(table.wash_max), float(table.unlit_max)]
             self.lut = data
-            self.background = to_display(np.asarray(paper_colour(self.params), np.float64)).tolist()
+            self.background = to_display(np.asarray(paper_colour(params), np.float64)).tolist()
             if look is not None:
-                self.mix_lut = np.ascontiguousarray(look[0]).astype("<f2").tobytes()
-                self._send_look_uniforms(look[1:])
+                self.mix_lut = look.astype("<f2").tobytes()
+                self._send_look_uniforms()
             self.bake_ms = elapsed
         return table
 
-    def _send_look_uniforms(self, mix_range: tuple[float, float] | None = None) -> None:
+    def _send_look_uniforms(self) -> None:
         """The look's uniforms for the current leaves (`look.look_uniforms`: the edge blur's weights follow its width)
-        and the mix LUT's range."""
+        and the mix LUT's range (`mix_lut_range`)."""
         scene = _with_look(self._scene, self.look)
         wc = scene.watercolour
         u = look_uniforms(wc.look, wc.pigments, height=scene.height)
-        if mix_range is None:
-            mix_range = (self.look_uniforms.get("lut_wash_max"), self.look_uniforms.get("lut_unlit_max"))
-        u["lut_wash_max"], u["lut_unlit_max"] = (float(x) for x in mix_range)
+        u["lut_wash_max"], u["lut_unlit_max"] = mix_lut_range(self.params)
         self.look_uniforms = {k: [float(x) for x in v] if isinstance(v, (list, tuple)) else v for k, v in u.items()}
 
     def export(self, folder: str | os.PathLike | None = None, *, overwrite: bool = True) -> list[Path]:

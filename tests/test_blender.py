@@ -14,7 +14,7 @@ from PIL import Image
 
 import diffwash
 from diffwash import shading
-from diffwash._blender import (BLENDER_FILES, LOOK_NOT_CARRIED, blender_config, bpy_available, evaluate_program,
+from diffwash._blender import (BLENDER_FILES, blender_config, bpy_available, evaluate_program,
                                look_programs, thickness_program)
 from diffwash._export import EXPORT_FILES, export
 
@@ -172,7 +172,7 @@ def test_look_programs_are_the_looks_pixel_terms(tmp_path):
     relief = evaluate_program(programs["relief"], {"rgb": rgb, "shade": shade})["rgb"]
     assert np.allclose(relief, np.asarray(wl.paper_shading(rgb, shade, wc.look.paper_shading)), rtol=1e-6, atol=1e-9)
     config = blender_config(scene, diffwash.lut.bake(scene.params, 16))
-    assert config["look"]["not_carried"] == list(LOOK_NOT_CARRIED) and config["look"]["tile"] == list(np.asarray(wc.screen).shape[:2])
+    assert config["look"]["not_carried"] == list(diffwash.BLENDER_LEAVES_OUT) and config["look"]["tile"] == list(np.asarray(wc.screen).shape[:2])
 
 
 def run_script(folder, *args):
@@ -278,7 +278,7 @@ def test_blender_draws_the_looks_per_pixel_effects(run_cli, tmp_path):
     assert "edges, shadow, hatching are not carried" in said, said
     drew = "CYCLES" if "with CYCLES" in said else "EEVEE"
     shot = np.asarray(Image.open(tmp_path / "blender.png").convert("RGB"), np.float64) / 255
-    carried = showcase(tmp_path, 256, drop=tuple(LOOK_NOT_CARRIED))
+    carried = showcase(tmp_path, 256, drop=tuple(diffwash.BLENDER_LEAVES_OUT))
     db, everything = psnr(shot, reference(carried, "per-pixel")), psnr(shot, reference(full, "per-pixel"))
     off = int((np.abs(shot - reference(carried, "per-pixel")).max(axis=-1) > 2 / 255).sum())
     print(f"Blender ({drew}), watercolour showcase 256x256: {db:.1f} dB against diffwash render of the effects it "

@@ -122,5 +122,5 @@ def test_a_render_hashes_each_host_array_once(monkeypatch, tmp_path):
     once = large_hashes()
     import contextlib
 
-    monkeypatch.setattr(_cache, "same_arrays", contextlib.nullcontext)
+    monkeypatch.setattr(_render, "same_arrays", contextlib.nullcontext)
     assert once <= 3 < large_hashes(), once  # vertices, faces, normals once each; without the block, again per cache

@@ -9,6 +9,11 @@
 // runner.draw(values, light, size) draws a frame of `size` = [width, height] with every uniform in `values`
 // (row-major matrices); runner.setTexture(name, data) replaces an input texture (data as LOOK.textures holds it).
 
+// A column-major n x n matrix (WebGL's layout) as rows, the look's uniforms' layout (uniforms.json).
+function rowsOf(m, n) {
+  return Array.from({length: n}, (_, r) => Array.from({length: n}, (_, c) => m[c * n + r]));
+}
+
 // A compiled shader, or fail(message) with the compiler's log (the plain model's programs use it too).
 function compileShader(gl, type, source, name, fail) {
   const sh = gl.createShader(type);

@@ -110,7 +110,6 @@ function uploadMixLut(look, config, data) {
   const spec = config.look.textures.mix_lut, shape = spec.levels[0].shape, n = shape.reduce((a, b) => a * b, 1) * spec.channels;
   look.setTexture("mix_lut", {channels: spec.channels, levels: [{shape: shape, half_float: view(u8(data), 0, n, Uint16Array)}]});
 }
-const rowsOf = (m, n) => Array.from({length: n}, (_, r) => Array.from({length: n}, (_, c) => m[c * n + r]));
 function drawLook(look, config, s) {
   const cam = config.camera, leaves = {};
   for (const k in s.lookValues) leaves["look_" + k] = s.lookValues[k];

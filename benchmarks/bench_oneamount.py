@@ -31,7 +31,11 @@ paints' single layers over the same ground as the mixture:
      sample, 0.002 absolute);
    - two light grounds: the NTU paper and a cream paper;
    - held out: 30 pairs and 14 triples of those paints (random fractions) over the white ground, never in the
-     table, and the same 44 over the cream ground.
+     table, and the same 44 over the cream ground;
+   - and 22 glaze stacks (`A/B`: paint B brushed over dry paint A, each at its own thickness) over each ground,
+     measured through the same physics: each layer of its own uneven thickness, the top paint's surface, noise.
+     No stack is in the table either; the simple peers have no stack rule, so the stacks' line compares with
+     the top paint's own layer over the ground (what one sees if the lower layer is ignored) instead.
 
 2. `ntu` (real paint, the NTU watercolours, one ground only): each of the 13 paints once, at 0.06 mL over paper,
    is the whole table; held out, every two-paint mixture of the table whose total is 0.06 mL (198 rows, 62 pairs),
@@ -159,6 +163,23 @@ def mixed(paints, names, frac, ground, inter, rng):
     return np.clip(R, 1e-3, 1.0)
 
 
+def stacked(paints, bottom: str, top: str, ground, rng, uneven=0.25):
+    """A glaze stack's measured reflectance: `top` brushed over dry `bottom`, each a layer of its own uneven
+    thickness (independent log-normal, Gauss-Hermite average), over `ground`, seen through `top`'s surface."""
+    x, w = np.polynomial.hermite_e.hermegauss(5)
+    w = w / w.sum()
+    (Ka, Sa, ta, _, _), (Kb, Sb, tb, k1, k2) = paints[bottom], paints[top]
+    g_in = ground / (1 - k2 + k2 * ground)
+    R = 0.0
+    for xa, wa in zip(x, w):
+        lower = over(*km_layer(Ka, Sa, ta * np.exp(uneven * xa - 0.5 * uneven**2)), g_in)
+        for xb, wb in zip(x, w):
+            R = R + wa * wb * over(*km_layer(Kb, Sb, tb * np.exp(uneven * xb - 0.5 * uneven**2)), lower)
+    R = k1 + (1 - k1) * (1 - k2) * R / (1 - k2 * R)
+    R = R * (1 + rng.normal(0, 0.01)) * (1 + rng.normal(0, 0.005, len(R))) + rng.normal(0, 0.002, len(R))
+    return np.clip(R, 1e-3, 1.0)
+
+
 def generated_case(seed: int, n_paints: int):
     """The table (list of rows) and the held-out queries of one seed (module docstring)."""
     rng = np.random.default_rng(seed)
@@ -183,7 +204,13 @@ def generated_case(seed: int, n_paints: int):
         frac = w / w.sum()
         held.append(([names[i] for i in pick], frac))
     queries = {g: [(p, f, mixed(paints, p, f, v, inter, rng)) for p, f in held] for g, v in grounds.items()}
-    return table, queries
+    srng = np.random.default_rng(seed + 1000)  # the stacks' own draws: the table and mixtures stay as they were
+    pairs = set()
+    while len(pairs) < 22:
+        a, b = (names[i] for i in srng.choice(len(names), 2, replace=False))
+        pairs.add((a, b))
+    stacks = {g: [((a, b), stacked(paints, a, b, v, srng)) for a, b in sorted(pairs)] for g, v in grounds.items()}
+    return table, queries, stacks
 
 
 # ---------------------------------------------------------------- the predictions that need no fit
@@ -219,8 +246,9 @@ def _write(path: Path, wl, rows) -> None:
         w.writerows([(p, a, g, *(f"{x:.6f}" for x in v)) for p, a, g, v in rows])
 
 
-def score(table_rows, wl, queries: dict, amount_of, label: str) -> None:
-    """Fit the table, predict each ground's queries, print one line per method and ground."""
+def score(table_rows, wl, queries: dict, amount_of, label: str, stacks: dict | None = None) -> None:
+    """Fit the table, predict each ground's queries (and `stacks`: ground -> [((bottom, top), R)]), print one line
+    per method and ground."""
     with tempfile.TemporaryDirectory() as tmp:
         _write(Path(tmp, "t.csv"), wl, table_rows)
         m = measurements.read_measurements(Path(tmp, "t.csv"))
@@ -250,6 +278,18 @@ def score(table_rows, wl, queries: dict, amount_of, label: str) -> None:
             de["mixbox"] = float(np.mean(np.asarray(colorimetry.delta_e_2000(mb, truth))))
         print(f"| {g} | {len(qs)} | {de['diffwash']:.2f} | {held} | {s90:.2f} | {de['one']:.2f} | {de['geo']:.2f} | "
               f"{de.get('mixbox', float('nan')):.2f} |", flush=True)  # fmt: skip
+    if stacks:
+        print("\n| ground | held-out glaze stacks | diffwash | held by its 90% regions (median radius) | model error "
+              "holding 90% | the top paint's layer alone |\n|---|---|---|---|---|---|")  # fmt: skip
+        for g, qs in stacks.items():
+            single = {p: v for p, a, gg, v in table_rows if gg == g and a != "0"}
+            truth = np.asarray(obs.lab(np.array([v for _, v in qs])))
+            rows = (["/".join(ab) for ab, _ in qs], ["1/1"] * len(qs), [g] * len(qs))
+            pred = fit.library.predict(*rows)
+            held, s90 = _coverage(fit.library, rows, truth, pred)
+            top = np.asarray(obs.lab(np.array([single[b] for (_, b), _ in qs])))
+            de, de_top = (float(np.mean(np.asarray(colorimetry.delta_e_2000(x, truth)))) for x in (pred.lab, top))
+            print(f"| {g} | {len(qs)} | {de:.2f} | {held} | {s90:.2f} | {de_top:.2f} |", flush=True)
 
 
 def _coverage(lib, rows, truth, pred) -> tuple[str, float]:
@@ -269,8 +309,8 @@ def _coverage(lib, rows, truth, pred) -> tuple[str, float]:
 
 def generated(seeds, n_paints: int) -> None:
     for seed in seeds:
-        table, queries = generated_case(seed, n_paints)
-        score(table, WL, queries, lambda f: "+".join(f"{x:.4f}" for x in f), f"Generated, seed {seed}")
+        table, queries, stacks = generated_case(seed, n_paints)
+        score(table, WL, queries, lambda f: "+".join(f"{x:.4f}" for x in f), f"Generated, seed {seed}", stacks)
 
 
 def ntu() -> None:

@@ -15,7 +15,9 @@ Kubelka-Munk maths forms of them stay finite.
 
 from __future__ import annotations
 
+import difflib
 import os
+import re
 import types
 import typing
 from typing import Annotated, Any, Literal
@@ -28,7 +30,8 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 from ._errors import DiffwashError
 from ._io import FLOAT32_MAX
 
-__all__ = ["validate", "format_table", "LibraryFile", "COEFFICIENT_MAX", "GAMMA_MAX", "WEIGHT_RANGE", "name_key"]
+__all__ = ["validate", "validate_rows", "format_table", "LibraryFile", "LayoutFile", "MeasurementRow", "QueryRow",
+           "COEFFICIENT_MAX", "GAMMA_MAX", "WEIGHT_RANGE", "name_key", "Shaped", "Vec3", "Flag"]
 
 #: The largest K or S (per unit thickness) a file may hold: products of two stay far inside float32.
 COEFFICIENT_MAX = 1e12
@@ -61,9 +64,90 @@ def name_key(name: str) -> str:
 
 
 class _Part(BaseModel):
-    """An object of a file: unknown keys are refused (a typo must not be silently ignored)."""
+    """An object of a file: unknown keys are refused (a typo must not be silently ignored), naming a close key."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+    @pydantic.model_validator(mode="before")
+    @classmethod
+    def _known_keys(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            for k in data:
+                if k not in cls.model_fields:
+                    close = difflib.get_close_matches(str(k), list(cls.model_fields), n=1)
+                    hint = f"did you mean {close[0]!r}?" if close else f"one of {', '.join(cls.model_fields)}"
+                    raise _Located(f"unknown key; {hint}", (k,))
+        return data
+
+
+#: Pydantic's errors about the form of a value (its JSON type, its length), as against its range.
+_SHAPE = {"missing", "too_short", "too_long", "finite_number", "literal_error", "union_tag_invalid",
+          "union_tag_not_found"}  # fmt: skip
+
+
+def _is_shape(err: dict) -> bool:
+    return err["type"] in _SHAPE or err["type"].endswith(("_type", "_parsing"))
+
+
+def _shown(v: Any) -> str:
+    shown = repr(v)
+    return shown if len(shown) <= 60 else shown[:57] + "..."
+
+
+def _relocated(err: dict, skip: int = 0) -> "_Located":
+    """Pydantic's error `err` as a `_Located` (its message, its key path less the first `skip` parts)."""
+    inner = (err.get("ctx") or {}).get("error")
+    loc = tuple(err["loc"][skip:])
+    if isinstance(inner, _Located):
+        return _Located(str(inner), loc + inner.loc)
+    return _Located(_message(err), loc)
+
+
+def Shaped(message: str, *, union: bool = False) -> Any:
+    """Annotation: a value of the wrong form (JSON type, length; for a `union`, no member's form) is refused with
+    `message` as a whole, while a problem inside a value of the right form names its own key and range."""
+
+    def wrap(v: Any, handler: Any) -> Any:
+        try:
+            return handler(v)
+        except pydantic.ValidationError as e:
+            errors = e.errors(include_url=False)
+            skip = 1 if union else 0  # a union's errors start with the member's tag
+            inner = [x for x in errors if len(x["loc"]) > skip]
+            if inner:
+                raise _relocated(inner[0], skip) from None
+            real = [x for x in errors if not _is_shape(x)]
+            if real:
+                raise _relocated(real[0], len(real[0]["loc"])) from None
+            raise ValueError(f"{message}, got {_shown(v)}") from None
+
+    return pydantic.WrapValidator(wrap)
+
+
+def _nonzero(v: list) -> list:
+    if not any(v):
+        raise ValueError(f"must be a non-zero vector, got {v!r}")
+    return v
+
+
+#: A point or direction: a list of 3 finite numbers.
+Vec3 = Annotated[list[Number], Field(min_length=3, max_length=3), Shaped("must be a list of 3 finite numbers")]
+#: A non-zero direction.
+Direction = Annotated[Vec3, AfterValidator(_nonzero)]
+#: A JSON true or false (no 0 or 1).
+Flag = Annotated[bool, pydantic.Strict()]
+#: A whole JSON number (no 1.0, no bool).
+Whole = Annotated[int, pydantic.Strict()]
+
+
+def _not_blank(v: str) -> str:
+    if not v.strip():
+        raise ValueError("must not be blank")
+    return v
+
+
+#: Text with a non-space character.
+Name = Annotated[Text, AfterValidator(_not_blank)]
 
 
 class AmountLaw(_Part):
@@ -174,10 +258,12 @@ def _where(loc: tuple) -> str:
     return out
 
 
-_TYPES = {"model_type": "must be an object {...}", "model_attributes_type": "must be an object {...}",
-          "dict_type": "must be an object {...}", "list_type": "must be a list [...]",
-          "float_type": "must be a number", "string_type": "must be text", "missing": "missing key",
-          "extra_forbidden": "unknown key", "finite_number": "must be a finite number"}  # fmt: skip
+_TYPES = {"model_type": "must be a JSON object {...}", "model_attributes_type": "must be a JSON object {...}",
+          "dict_type": "must be a JSON object {...}", "list_type": "must be a list [...]",
+          "tuple_type": "must be a list [...]", "float_type": "must be a finite number", "string_type": "must be text",
+          "missing": "missing key", "extra_forbidden": "unknown key", "finite_number": "must be a finite number",
+          "int_type": "must be a whole number", "bool_type": "must be true or false",
+          "float_parsing": "not a number", "int_from_float": "must be a whole number"}  # fmt: skip
 
 
 _BOUNDS = {"greater_than": (">", "gt"), "greater_than_equal": (">=", "ge"), "less_than": ("<", "lt"),
@@ -187,14 +273,22 @@ _BOUNDS = {"greater_than": (">", "gt"), "greater_than_equal": (">=", "ge"), "les
 def _message(err: dict) -> str:
     kind = err["type"]
     got = err.get("input")
-    shown = repr(got)
-    shown = shown if len(shown) <= 60 else shown[:57] + "..."
+    shown = _shown(got)
     if kind == "missing":
         return _TYPES[kind]
     if kind == "float_type" and isinstance(got, int) and not isinstance(got, bool):
         return f"{shown} is out of float32 range (magnitude at most {FLOAT32_MAX:.4g}), which diffwash computes in"
     if kind == "too_short":
-        return "must not be empty"
+        n = err["ctx"]["min_length"]
+        return "must not be empty" if n == 1 else f"must have at least {n} items, got {err['ctx']['actual_length']}"
+    if kind == "too_long":
+        return f"must have at most {err['ctx']['max_length']} items, got {_shown(got)}"
+    if kind == "literal_error":
+        expected = err["ctx"]["expected"]
+        names = re.findall(r"'([^']*)'", expected)
+        return f"must be one of {', '.join(names) or expected}, got {shown}"
+    if kind == "float_parsing":
+        return f"not a number: {shown}"
     if kind in _BOUNDS:
         sign, key = _BOUNDS[kind]
         return f"must be {sign} {err['ctx'][key]:g}, got {shown}"
@@ -205,19 +299,35 @@ def _message(err: dict) -> str:
     return msg if kind == "value_error" else f"{msg}, got {shown}"
 
 
-def validate(model: type[BaseModel], data: Any, file: str | os.PathLike | None = None) -> Any:
-    """`data` (parsed JSON) checked against `model`; the first problem is a `DiffwashError` naming `file` and key."""
+def validate(model: type[BaseModel], data: Any, file: str | os.PathLike | None = None, *, what: str | None = None) -> Any:
+    """`data` (parsed JSON) checked against `model`; the first problem is a `DiffwashError` naming `file` and key.
+
+    `what` names the file kind for a file that is not a JSON object (`a scene must be a JSON object, got list`).
+    """
+    if what is not None and not isinstance(data, dict):
+        raise DiffwashError(f"a {what} must be a JSON object, got {type(data).__name__}", file=file)
     try:
         return model.model_validate(data)
     except _Located as e:
         raise DiffwashError(str(e), file=file, field=_where(e.loc)) from None
     except pydantic.ValidationError as e:
-        errors = e.errors(include_url=False)
-        err = errors[0]
-        ctx = err.get("ctx") or {}
-        if isinstance(ctx.get("error"), _Located):
-            raise DiffwashError(str(ctx["error"]), file=file, field=_where(ctx["error"].loc)) from None
-        raise DiffwashError(_message(err), file=file, field=_where(err["loc"]) or None) from None
+        located = _relocated(e.errors(include_url=False)[0])
+        raise DiffwashError(str(located), file=file, field=_where(located.loc) or None) from None
+
+
+def validate_rows(adapter: pydantic.TypeAdapter, rows: list, file: Any, lines: list[int], columns: dict) -> list:
+    """Rows of a table (dicts) checked at once against `adapter` (a `TypeAdapter` of a list of row models); the
+    first problem is a `DiffwashError` naming `file`, the line (`lines[i]`) and the column (`columns[key]`: the
+    header's name of a row model's key, or for a list-valued key the list of names of its items)."""
+    try:
+        return adapter.validate_python(rows)
+    except pydantic.ValidationError as e:
+        located = _relocated(e.errors(include_url=False)[0])
+        i, key, *rest = located.loc
+        column = columns.get(key, key)
+        if not isinstance(column, str):
+            column = column[rest[0]] if rest else ",".join(column)
+        raise DiffwashError(str(located), file=file, field=f"line {lines[i]}: {column}") from None
 
 
 def _type_name(t: Any) -> str:

@@ -381,3 +381,99 @@ def format_table(model: type[BaseModel]) -> str:
         rows.append(f"| `{name}` | {_type_name(f.annotation)} | {bounds} | {default} | {f.description or ''} |")
     return "\n".join(rows)
 
+
+
+# --- swatch-card layouts (diffwash.fit.parse_layout) ---------------------------------------------------------------
+
+
+def _whole_pixel(v: float) -> float:
+    if not float(v).is_integer():
+        raise ValueError(f"must be a whole pixel coordinate, got {v!r}")
+    return v
+
+
+def _nonempty_box(v: list) -> list:
+    if v[2] <= v[0] or v[3] <= v[1]:
+        raise ValueError(f"is empty: needs x0 < x1 and y0 < y1, got {v!r}")
+    return v
+
+
+#: A pixel box `[x0, y0, x1, y1]` of the photo as displayed, `x0 < x1`, `y0 < y1`.
+Box = Annotated[list[Annotated[Number, AfterValidator(_whole_pixel)]], Field(min_length=4, max_length=4),
+                AfterValidator(_nonempty_box), Shaped("must be [x0, y0, x1, y1] (4 pixel coordinates)")]  # fmt: skip
+_Fraction = Annotated[Number, Field(ge=0, le=1)]
+
+
+class LayoutPaper(_Part):
+    """The box of bare paper, which calibrates exposure and white balance."""
+
+    box: Box = Field(description="`[x0, y0, x1, y1]`, whole pixels")
+    reflectance: Annotated[list[Annotated[Number, Field(gt=0, le=1)]], Field(min_length=3, max_length=3),
+                           Shaped("must be 3 linear reflectances (red, green, blue)")] | None = Field(
+        None, description="the paper's linear RGB reflectance; by default diffwash's paper (0.92, 0.90, 0.84)")
+
+
+class LayoutBlack(_Part):
+    """The box of the bare black band (needed when a patch lies on black)."""
+
+    box: Box = Field(description="`[x0, y0, x1, y1]`, whole pixels")
+
+
+class LayoutPatch(_Part):
+    """A painted patch."""
+
+    box: Box = Field(description="`[x0, y0, x1, y1]`, whole pixels")
+    coats: Annotated[Number | Text, Shaped("must be a number of coats > 0 ('+'-joined numbers for a mixture)",
+                                           union=True)] = Field(  # fmt: skip
+        description="the thickness in coats (> 0); for a `pigment` of several, `+`-joined numbers (>= 0) per "
+        "pigment and `/`-joined groups per layer")
+    ground: Literal["paper", "black"] = Field(description="what the paint lies on")
+    pigment: Name | None = Field(None, description="the paint: a name, `+`-joined names (a mixture), `/`-joined "
+                                 "layers (a glaze stack, bottom first); by default the card's pigment")  # fmt: skip
+
+
+class LayoutReference(_Part):
+    """A patch of known colour: exactly one of `lab`, `reflectance`, `spectrum` (with `wavelengths`)."""
+
+    box: Box = Field(description="`[x0, y0, x1, y1]`, whole pixels")
+    lab: Annotated[tuple[Annotated[Number, Field(ge=0, le=100)], Annotated[Number, Field(ge=-200, le=200)],
+                         Annotated[Number, Field(ge=-200, le=200)]],
+                   Shaped("must be [L, a, b] (CIELAB, D65)")] | None = Field(  # fmt: skip
+        None, description="CIELAB (D65, CIE 1931 2-degree): L in [0, 100], a and b in [-200, 200]")
+    reflectance: Annotated[list[_Fraction], Field(min_length=3, max_length=3),
+                           Shaped("must be 3 linear sRGB reflectances (red, green, blue)")] | None = Field(
+        None, description="linear sRGB reflectance")
+    spectrum: Annotated[list[Annotated[Number, Field(ge=0, le=1.5)]], Field(min_length=1)] | None = Field(
+        None, description="reflectance per wavelength")
+    wavelengths: Annotated[list[Number], Field(min_length=1)] | None = Field(
+        None, description="the spectrum's wavelengths in nm, increasing, spanning 400-700")
+
+    @pydantic.model_validator(mode="after")
+    def _one_colour(self) -> "LayoutReference":
+        given = [k for k in ("lab", "reflectance", "spectrum") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise _Located("needs exactly one of lab, reflectance, spectrum (with wavelengths)", ())
+        wl = self.wavelengths
+        if wl is not None and given != ["spectrum"]:
+            raise _Located("only goes with a spectrum", ("wavelengths",))
+        if given == ["spectrum"]:
+            if wl is None:
+                raise _Located("missing key: a spectrum needs its wavelengths (nm)", ("wavelengths",))
+            if len(self.spectrum) != len(wl):
+                raise _Located(f"must be {len(wl)} reflectances, one per wavelength, got {len(self.spectrum)}",
+                               ("spectrum",))  # fmt: skip
+            if any(b <= a for a, b in zip(wl, wl[1:])) or wl[0] > 400 or wl[-1] < 700:
+                raise _Located("must increase and span 400-700 nm", ("wavelengths",))
+        return self
+
+
+class LayoutFile(_Part):
+    """A swatch-card layout (`diffwash fit-swatch --layout`): where things are in the photo, in pixels as displayed."""
+
+    paper: LayoutPaper = Field(description="`{box, reflectance}` (below); a box of bare paper is needed to "
+                               "calibrate exposure and white balance")  # fmt: skip
+    black: LayoutBlack | None = Field(None, description="`{box}`: bare black, needed when a patch lies on black")
+    patches: list[LayoutPatch] = Field(min_length=1, description="the painted patches (below), at least one")
+    references: list[LayoutReference] = Field([], description="patches of known colour (below)")
+    name: Name | None = Field(None, description="the card's pigment")
+    meta: Any = Field(None, description="anything; ignored")

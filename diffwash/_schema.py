@@ -258,9 +258,9 @@ def _where(loc: tuple) -> str:
     return out
 
 
-_TYPES = {"model_type": "must be a JSON object {...}", "model_attributes_type": "must be a JSON object {...}",
-          "dict_type": "must be a JSON object {...}", "list_type": "must be a list [...]",
-          "tuple_type": "must be a list [...]", "float_type": "must be a finite number", "string_type": "must be text",
+_TYPES = {"model_type": "must be an object {...}", "model_attributes_type": "must be an object {...}",
+          "dict_type": "must be an object {...}", "list_type": "must be a list [...]",
+          "tuple_type": "must be a list [...]", "float_type": "must be a number", "string_type": "must be text",
           "missing": "missing key", "extra_forbidden": "unknown key", "finite_number": "must be a finite number",
           "int_type": "must be a whole number", "bool_type": "must be true or false",
           "float_parsing": "not a number", "int_from_float": "must be a whole number"}  # fmt: skip
@@ -477,3 +477,33 @@ class LayoutFile(_Part):
     references: list[LayoutReference] = Field([], description="patches of known colour (below)")
     name: Name | None = Field(None, description="the card's pigment")
     meta: Any = Field(None, description="anything; ignored")
+
+
+# --- measurement and query tables (diffwash.measurements) ----------------------------------------------------------
+
+#: A table's number: CSV text such as `0.12` or `1e-3`, finite in float32.
+TableNumber = Annotated[float, pydantic.AllowInfNan(False), AfterValidator(_float32)]
+
+
+class QueryRow(_Part):
+    """A row of a query table (`diffwash predict`): the columns `pigment,amount,ground` (others are ignored)."""
+
+    pigment: str = Field(description="a pigment's name, `+`-joined names (a mixture brushed as one layer) or "
+                         "`/`-joined layers (a glaze stack, bottom first); names are compared ignoring case and "
+                         "spaces")  # fmt: skip
+    amount: str = Field(description="how much of each pigment (>= 0, any unit: mL on the sample's area, coats), "
+                        "`+`-joined per pigment and `/`-joined per layer like `pigment`")  # fmt: skip
+    ground: Name = Field(description="what the paint lies on: a ground that a row `NAME,0,NAME` measures")
+
+
+class MeasurementRow(QueryRow):
+    """A row of a measurement table: `pigment,amount,ground` and the measured values, one column per band."""
+
+    values: list[Annotated[TableNumber, Field(ge=0)]] = Field(
+        description="the columns named by wavelength in nm (`380,390,...`: reflectance, 0..1, a little above 1 "
+        "from brighteners; above 2 refused), or `r,g,b` (display sRGB, 0-255 or 0-1 for the whole table)")
+
+
+def row_adapter(model: type[BaseModel]) -> pydantic.TypeAdapter:
+    """The checker of a table's rows of `model`, all at once (`validate_rows`)."""
+    return pydantic.TypeAdapter(list[model])

@@ -79,7 +79,7 @@ def test_the_look_is_drawn_finite_and_visible(tmp_path):
 
 BAD = [
     ({"edges": {"width": -1}}, "watercolour.edges.width", "must be >= 0"),
-    ({"edges": {"darkening": "x"}}, "watercolour.edges.darkening", "finite number"),
+    ({"edges": {"darkening": "x"}}, "watercolour.edges.darkening", "must be a number, got 'x'"),
     ({"paper": {"granulation": 1.5}}, "watercolour.paper.granulation", "must be <= 1, got 1.5"),
     ({"paper": {"image": "nowhere.png"}}, "watercolour.paper.image", "no such image file"),
     ({"paper": {"seed": -3}}, "watercolour.paper.seed", "must be >= 0, got -3"),

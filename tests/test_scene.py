@@ -131,7 +131,7 @@ BAD = [
     (dict(wash={"pigment": "Quinacridone Roze"}), r"wash\.pigment: unknown pigment 'Quinacridone Roze'.*did you mean"),
     (dict(unlit={"K": [1, 1, 1]}), r"unlit\.S: missing key"),
     (dict(unlit={"K": [1, 1, -1], "S": [1, 1, 1]}), r"unlit\.K\[2\]: must be >= 0"),
-    (dict(shininess="20"), r"shininess: must be a finite number"),
+    (dict(shininess="20"), r"shininess: must be a number, got '20'"),
     (dict(gain=1.0), r"gain: must be < 1, got 1\.0"),
     (dict(k_wash=-1), r"k_wash: must be >= 0"),
     (dict(paper=[1.2, 0.9, 0.8]), r"paper: is a reflectance and must be within \[0, 1\]"),

@@ -16,6 +16,7 @@ Kubelka-Munk maths forms of them stay finite.
 from __future__ import annotations
 
 import difflib
+import json
 import os
 import re
 import types
@@ -289,9 +290,11 @@ def _message(err: dict) -> str:
         return f"must be one of {', '.join(names) or expected}, got {shown}"
     if kind == "float_parsing":
         return f"not a number: {shown}"
-    if kind in _BOUNDS:
+    if kind == "string_too_short":
+        return "must not be empty"
+    if kind in _BOUNDS:  # a number given as text (a table's) is shown as written
         sign, key = _BOUNDS[kind]
-        return f"must be {sign} {err['ctx'][key]:g}, got {shown}"
+        return f"must be {sign} {err['ctx'][key]:g}, got {got.strip() if isinstance(got, str) else shown}"
     if kind in _TYPES:
         return f"{_TYPES[kind]}, got {shown}"
     msg = err["msg"].removeprefix("Value error, ")
@@ -336,16 +339,19 @@ def _type_name(t: Any) -> str:
     if origin is Annotated:
         return _type_name(args[0])
     if origin is Literal:
-        return " or ".join(f"`{a!r}`".replace("'", '"') for a in args)
+        return " or ".join(f"`{a!r}`".replace("'", '"') for a in args).replace("`False`", "`false`")
     if origin in (typing.Union, types.UnionType):
-        return " or ".join(_type_name(a) for a in args if a is not type(None))
+        return " or ".join(dict.fromkeys(_type_name(a) for a in args if a is not type(None)))
     if origin is list:
         return f"list of {_type_name(args[0])}"
+    if origin is tuple:
+        return f"list of {len(args)} {_type_name(args[0])}"
     if origin is dict:
         return "object"
     if isinstance(t, type) and issubclass(t, BaseModel):
-        return "object"
-    return {float: "number", str: "text", int: "integer"}.get(t, getattr(t, "__name__", str(t)))
+        return f"`{t.__name__}` object"
+    return {float: "number", str: "text", int: "whole number", bool: "`true` or `false`"}.get(
+        t, "anything" if t is Any else getattr(t, "__name__", str(t)))
 
 
 def _bounds(t: Any, metadata: list) -> str:
@@ -353,10 +359,21 @@ def _bounds(t: Any, metadata: list) -> str:
     while typing.get_origin(t) is Annotated:
         t, *more = typing.get_args(t)
         items += more
-    if typing.get_origin(t) is list:
-        return _bounds(typing.get_args(t)[0], [])
+    if typing.get_origin(t) in (typing.Union, types.UnionType):
+        return "; ".join(filter(None, dict.fromkeys(_bounds(a, []) for a in typing.get_args(t))))
     items = [x for m in items for x in (m.metadata if isinstance(m, pydantic.fields.FieldInfo) else [m])]
     out = []
+    if typing.get_origin(t) is tuple:
+        out += [f"[{i}] {b}" for i, a in enumerate(typing.get_args(t)) if (b := _bounds(a, []))]
+    if typing.get_origin(t) is list:
+        sizes = {type(m): m for m in items if isinstance(m, (at.MinLen, at.MaxLen))}
+        lo, hi = sizes.get(at.MinLen), sizes.get(at.MaxLen)
+        if lo and hi and lo.min_length == hi.max_length:
+            out.append(f"{lo.min_length} items")
+        elif lo and lo.min_length:
+            out.append(f"at least {lo.min_length}")
+        inner = _bounds(typing.get_args(t)[0], [])
+        return ", ".join(out + ([f"each {inner}"] if inner else []))
     for m in items:
         for k in ("gt", "ge", "lt", "le"):
             v = getattr(m, k, None)
@@ -374,9 +391,8 @@ def format_table(model: type[BaseModel]) -> str:
     """The Markdown table of `model`'s keys: key, type, range, default, meaning."""
     rows = ["| key | type | range | default | meaning |", "|---|---|---|---|---|"]
     for name, f in model.model_fields.items():
-        default = "required" if f.is_required() else ("`{}`" if f.default_factory is not None else
-                                                      "none" if f.default is None else f"`{f.default!r}`")  # fmt: skip
-        default = default.replace("'", '"')
+        default = "required" if f.is_required() else ("`{}`" if f.default_factory is not None or isinstance(
+            f.default, BaseModel) else "none" if f.default is None else f"`{json.dumps(f.default)}`")  # fmt: skip
         bounds = _bounds(f.annotation, f.metadata) or "-"
         rows.append(f"| `{name}` | {_type_name(f.annotation)} | {bounds} | {default} | {f.description or ''} |")
     return "\n".join(rows)

@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from . import colorimetry, spectral
+from . import _schema, colorimetry, spectral
 from ._errors import DiffwashError
 from ._io import check_float32, env_limit, open_input
 
@@ -370,8 +370,6 @@ def _band_columns(header: list[str], path: Path) -> tuple[list[int], tuple[float
 def _checked_rows(model: str, body: list, header: list[str], col: dict[str, int], vcols: list[int], path: Path) -> list:
     """The rows as `_schema.MeasurementRow`s or `QueryRow`s (`model`), all checked at once: the first problem
     names the file, the line and the column."""
-    from . import _schema
-
     columns: dict[str, Any] = {k: k for k in col}
     if model == "MeasurementRow":
         rows = [{"pigment": r[col["pigment"]], "amount": r[col["amount"]], "ground": r[col["ground"]],
@@ -384,7 +382,7 @@ def _checked_rows(model: str, body: list, header: list[str], col: dict[str, int]
     return _schema.validate_rows(_ADAPTERS[model], rows, path, [n for n, _ in body], columns)
 
 
-#: The row checkers, made at first use (pydantic loads only when a table is read).
+#: The row checkers, made at first use (building one takes a few milliseconds).
 _ADAPTERS: dict[str, Any] = {}
 
 

@@ -61,6 +61,7 @@ from scipy.ndimage import binary_erosion
 from .. import colorimetry
 from .._errors import DiffwashError
 from .._io import check_float32, read_json
+from .._schema import LayoutFile, validate
 from ..shading import DEFAULT_PAPER
 from ._camera import CameraModel, fit_camera, needed_references, spectrum_lab
 from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
@@ -191,8 +192,6 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
     Keys, types and ranges are `diffwash._schema.LayoutFile`'s, checked first; here what needs the photo's size
     or more than one key. Errors name the file and the field, e.g. `card.json: patches[2].box: ... lies outside`.
     """
-    from .._schema import LayoutFile, validate
-
     model = validate(LayoutFile, data, file, what="layout")
     paper_box = _box(model.paper.box, file, "paper.box", size)
     refl = model.paper.reflectance if model.paper.reflectance is not None else list(DEFAULT_PAPER)

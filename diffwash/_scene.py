@@ -35,9 +35,11 @@ from jaxtyping import Float, Int
 from . import pigments as _pigments
 from ._camera import Camera
 from ._errors import DiffwashError
-from ._io import FLOAT32_MAX, check_float32, check_input_file, finite_number, read_json, write_json
+from ._io import FLOAT32_MAX, check_input_file, read_json, write_json
 from ._lazy import lazy
 from ._mixture import Mixture, mixture
+from ._scene_schema import BACKFACE_MODES, MAX_IMAGE_SIDE, SceneFile
+from ._schema import validate
 from ._watercolour import Watercolour, parse_watercolour, watercolour_files, watercolour_to_dict
 from .library import Library, load_library
 from .shading import DEFAULT_CONSTANTS, DEFAULT_PAPER, SHADING_MODES, Params
@@ -47,15 +49,6 @@ trimesh = lazy("trimesh")
 
 __all__ = ["Mesh", "Scene", "load_scene", "load_mesh", "parse_scene", "save_scene", "referenced_files", "MAX_IMAGE_SIDE"]
 
-#: Largest image side the renderer accepts (pixels).
-MAX_IMAGE_SIDE = 8192
-BACKFACE_MODES = ("auto", "cull", "both")
-
-_TOP_KEYS = {
-    "mesh", "image", "camera", "light", "shading", "paper", "wash", "unlit", "backfaces", "meta", "watercolour",
-    *DEFAULT_CONSTANTS,
-}  # fmt: skip
-_CAMERA_KEYS = {"eye", "target", "up", "fov_y", "near", "far"}
 
 
 class Mesh(eqx.Module):
@@ -106,56 +99,6 @@ class Scene(eqx.Module):
 
 def _fail(msg: str, file: Any, field: str | None = None) -> DiffwashError:
     return DiffwashError(msg, file=file, field=field)
-
-
-def _number(obj: dict, key: str, file: Any, field: str, *, default: Any = None, lo=None, hi=None, lo_open=False):
-    if key not in obj:
-        if default is None:
-            raise _fail("missing key", file, field)
-        return float(default)
-    v = obj[key]
-    if not finite_number(v):
-        raise _fail(f"must be a finite number, got {v!r}", file, field)
-    v = check_float32(v, file=file, field=field)
-    if lo is not None and (v < lo or (lo_open and v == lo)):
-        raise _fail(f"must be {'>' if lo_open else '>='} {lo}, got {v!r}", file, field)
-    if hi is not None and v > hi:
-        raise _fail(f"must be <= {hi}, got {v!r}", file, field)
-    return float(v)
-
-
-def _vec3(obj: dict, key: str, file: Any, field: str, default: Any = None, nonneg: bool = False) -> np.ndarray:
-    if key not in obj:
-        if default is None:
-            raise _fail("missing key", file, field)
-        return np.asarray(default, np.float64)
-    v = obj[key]
-    if not isinstance(v, list) or len(v) != 3 or not all(finite_number(c) for c in v):
-        raise _fail(f"must be a list of 3 finite numbers, got {v!r}", file, field)
-    for i, c in enumerate(v):
-        check_float32(c, file=file, field=f"{field}[{i}]")
-    if nonneg and any(c < 0 for c in v):
-        raise _fail(f"must be >= 0, got {v!r}", file, field)
-    return np.asarray(v, np.float64)
-
-
-def _object(obj: dict, key: str, file: Any, *, required: bool = True) -> dict:
-    if key not in obj:
-        if required:
-            raise _fail("missing key", file, key)
-        return {}
-    v = obj[key]
-    if not isinstance(v, dict):
-        raise _fail(f"must be a JSON object, got {type(v).__name__}", file, key)
-    return v
-
-
-def _check_keys(obj: dict, allowed: set[str], file: Any, where: str = "") -> None:
-    for k in obj:
-        if k not in allowed:
-            close = difflib.get_close_matches(k, sorted(allowed), n=1)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
-            raise _fail(f"unknown key{hint}", file, f"{where}{k}")
 
 
 def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None) -> Mesh:
@@ -226,15 +169,11 @@ def load_mesh(path: str | os.PathLike, *, field: str = "mesh", file: Any = None)
 
 
 def _pigment(spec: Any, key: str, file: Any, base: Path) -> _pigments.Pigment:
+    """A glaze's three-channel pigment (`spec` checked by `SceneFile`): by name, from a file, or K and S."""
     if isinstance(spec, str):
         spec = {"pigment": spec}
-    if not isinstance(spec, dict):
-        raise _fail('must be {"pigment": NAME_OR_FILE} or {"K": [...], "S": [...]}', file, key)
     if "pigment" in spec:
-        _check_keys(spec, {"pigment", "name"}, file, f"{key}.")
         ref = spec["pigment"]
-        if not isinstance(ref, str) or not ref:
-            raise _fail("must be a pigment name or a pigment file", file, f"{key}.pigment")
         candidate = base / ref
         try:
             if ref.lower().endswith(".json") or candidate.is_file():
@@ -244,14 +183,9 @@ def _pigment(spec: Any, key: str, file: Any, base: Path) -> _pigments.Pigment:
             if e.file is not None:
                 raise
             raise _fail(e.problem, file, f"{key}.pigment") from None
-    if "K" in spec or "S" in spec:
-        _check_keys(spec, {"K", "S", "name", "density", "staining", "granularity"}, file, f"{key}.")
-        return _pigments.parse({"name": key, **spec}, file=file, where=key)
-    raise _fail('needs "pigment" (a name or file) or "K" and "S"', file, key)
+    return _pigments.parse({"name": key, **spec}, file=file, where=key)
 
 
-#: Keys of a glaze made of library pigments.
-_LIBRARY_KEYS = {"library", "pigment", "mix", "amount"}
 #: How far a mix's proportions may sum from 1.
 _SUM_TOLERANCE = 1e-6
 
@@ -268,8 +202,6 @@ class _Glaze:
 
 def _load_library(ref: Any, file: Any, field: str, base: Path, cache: dict) -> tuple[Library, Path]:
     """The library file `ref` (relative to the scene), read once per parse; errors name the scene's field."""
-    if not isinstance(ref, str) or not ref:
-        raise _fail("must be the path of a pigment library (written by diffwash fit-swatch --table)", file, field)
     path = base / ref
     key = os.path.abspath(path)
     if key not in cache:
@@ -287,19 +219,9 @@ def _load_library(ref: Any, file: Any, field: str, base: Path, cache: dict) -> t
     return cache[key], path
 
 
-def _proportions(mix: Any, file: Any, field: str) -> dict[str, float]:
-    """A mix's `{NAME: proportion}`: numbers >= 0 summing to 1, each name once."""
-    if not isinstance(mix, dict) or not mix:
-        raise _fail('must be a non-empty object {"PIGMENT": proportion, ...}', file, field)
-    seen: dict[str, str] = {}
-    out = {}
-    for name, v in mix.items():
-        if name.lower() in seen:
-            raise _fail(f"names the pigment of {seen[name.lower()]!r} again", file, f"{field}.{name}")
-        seen[name.lower()] = name
-        if not finite_number(v) or v < 0:
-            raise _fail(f"must be a proportion >= 0, got {v!r}", file, f"{field}.{name}")
-        out[name] = float(v)
+def _proportions(mix: dict, file: Any, field: str) -> dict[str, float]:
+    """A mix's `{NAME: proportion}` (each >= 0, each name once: `SceneFile`), summing to 1."""
+    out = {name: float(v) for name, v in mix.items()}
     total = sum(out.values())
     if abs(total - 1) > _SUM_TOLERANCE:
         raise _fail(f"proportions must sum to 1, got {' + '.join(f'{v:g}' for v in out.values())} = {total:g}",
@@ -309,14 +231,9 @@ def _proportions(mix: Any, file: Any, field: str) -> dict[str, float]:
 
 def _library_glaze(spec: dict, key: str, file: Any, base: Path, cache: dict) -> _Glaze:
     """`{"library": FILE, "pigment": NAME}` or `{"library": FILE, "mix": {...}}`, with an optional `amount`."""
-    _check_keys(spec, _LIBRARY_KEYS, file, f"{key}.")
     lib, path = _load_library(spec["library"], file, f"{key}.library", base, cache)
-    if ("pigment" in spec) == ("mix" in spec):
-        raise _fail('needs either "pigment" (a name in the library) or "mix" ({"NAME": proportion, ...})', file, key)
     if "pigment" in spec:
         name = spec["pigment"]
-        if not isinstance(name, str) or not name:
-            raise _fail("must be a pigment name of the library", file, f"{key}.pigment")
         props, fields = {name: 1.0}, {name: f"{key}.pigment"}
     else:
         props = _proportions(spec["mix"], file, f"{key}.mix")
@@ -327,7 +244,7 @@ def _library_glaze(spec: dict, key: str, file: Any, base: Path, cache: dict) -> 
             close = difflib.get_close_matches(n, list(lib.names), n=1)
             hint = f"; did you mean {close[0]!r}?" if close else ""
             raise _fail(f"no pigment {n!r} in {spec['library']} (it has {', '.join(lib.names)}){hint}", file, fields[n])
-    amount = _number(spec, "amount", file, f"{key}.amount", lo=0, lo_open=True) if "amount" in spec else None
+    amount = float(spec["amount"]) if "amount" in spec else None
     obs = lib.observation if lib.spectral else None
     return _Glaze(mixture(lib, props, amount, source=path), obs, lib, spec["library"])
 
@@ -348,9 +265,6 @@ def _bands(g: _Glaze) -> str:
 
 def _parse_glazes(data: dict, file: Any, base: Path, cache: dict) -> tuple[_Glaze, _Glaze]:
     """The `wash` and `unlit` glazes, seen alike (both three channels, or both on one spectral grid)."""
-    for key in ("wash", "unlit"):
-        if key not in data:
-            raise _fail("missing key", file, key)
     wash = _glaze(data["wash"], "wash", file, base, cache)
     unlit = _glaze(data["unlit"], "unlit", file, base, cache)
     seen = [None if g.observation is None else g.observation.describe() for g in (wash, unlit)]
@@ -368,7 +282,6 @@ def _parse_glazes(data: dict, file: Any, base: Path, cache: dict) -> tuple[_Glaz
 
 def _ground(spec: dict, file: Any, base: Path, cache: dict, glazes: tuple[_Glaze, _Glaze]) -> tuple[np.ndarray, Observation]:
     """`{"ground": NAME}` (from the glazes' library) or `{"library": FILE, "ground": NAME}`."""
-    _check_keys(spec, {"library", "ground"}, file, "paper.")
     if "library" in spec:
         lib, _ = _load_library(spec["library"], file, "paper.library", base, cache)
         source = spec["library"]
@@ -377,9 +290,7 @@ def _ground(spec: dict, file: Any, base: Path, cache: dict, glazes: tuple[_Glaze
         if g is None:
             raise _fail('needs "library" (the glazes are not library pigments)', file, "paper")
         lib, source = g.library, g.source
-    name = spec.get("ground")
-    if not isinstance(name, str) or not name:
-        raise _fail(f"must name a ground of {source} ({', '.join(lib.grounds)})", file, "paper.ground")
+    name = spec["ground"]
     grounds = {k.lower(): v for k, v in lib.grounds.items()}
     if name.lower() not in grounds:
         raise _fail(f"no ground {name!r} in {source} (it has {', '.join(lib.grounds)})", file, "paper.ground")
@@ -403,45 +314,31 @@ def _parse_paper(data: dict, file: Any, base: Path, cache: dict, glazes: tuple[_
         if seen.describe() != obs.describe():
             raise _fail(f"{spec.get('library')} is seen on other bands than the glazes", file, "paper.library")
         return values
-    if obs is None:
-        paper = _vec3(data, "paper", file, "paper", default=DEFAULT_PAPER, nonneg=True)
-        if np.any(paper > 1):
-            raise _fail(f"is a reflectance and must be within [0, 1], got {paper.tolist()}", file, "paper")
-        return paper
-    n = len(obs.bands)
-    if not isinstance(spec, list) or len(spec) != n or not all(finite_number(v) and v >= 0 for v in spec):
-        raise _fail(f'must be {{"ground": NAME}} or a list of {n} reflectances >= 0 (one per band of the glazes\' '
-                    "library)", file, "paper")  # fmt: skip
-    return np.asarray([check_float32(v, file=file, field="paper") for v in spec], np.float64)
+    n = 3 if obs is None else len(obs.bands)
+    paper = np.asarray(DEFAULT_PAPER if spec is None else spec, np.float64)  # numbers >= 0 (`SceneFile`)
+    if len(paper) != n:
+        raise _fail(f'must be {{"ground": NAME}} or a list of {n} reflectances >= 0 (one per '
+                    f"{'channel' if obs is None else 'band of the glazes' + chr(39) + ' library'})", file, "paper")
+    if obs is None and np.any(paper > 1):
+        raise _fail(f"is a reflectance and must be within [0, 1], got {paper.tolist()}", file, "paper")
+    return paper
 
 
-def _parse_size(data: dict, file: str | os.PathLike | None, size: tuple[int, int] | None) -> tuple[int, int]:
-    """The image's (width, height): `size` (from --size) over the file's `image` object, checked."""
-    image = _object(data, "image", file, required=False)
-    _check_keys(image, {"width", "height"}, file, "image.")
-    if size is not None:
-        width, height = size
-        wfield = hfield = "--size"
-    else:
-        width, height = image.get("width", 512), image.get("height", 512)
-        wfield, hfield = "image.width", "image.height"
-    for v, f in ((width, wfield), (height, hfield)):
-        if not isinstance(v, int) or isinstance(v, bool):
-            raise _fail(f"must be a whole number of pixels, got {v!r}", file, f)
-        if not 1 <= v <= MAX_IMAGE_SIDE:
-            raise _fail(f"must be between 1 and {MAX_IMAGE_SIDE} pixels, got {v}", file, f)
-    return int(width), int(height)
+def _parse_size(image: Any, file: str | os.PathLike | None, size: tuple[int, int] | None) -> tuple[int, int]:
+    """The image's (width, height): `size` (from --size, checked here) over the file's `image` (`SceneFile`)."""
+    if size is None:
+        return image.width, image.height
+    for v in size:
+        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= MAX_IMAGE_SIDE:
+            raise _fail(f"must be whole numbers of pixels between 1 and {MAX_IMAGE_SIDE}, got {v!r}", file, "--size")
+    return int(size[0]), int(size[1])
 
 
-def _parse_camera(cam: dict, mesh: Mesh, file: str | os.PathLike | None) -> Camera:
-    """The `camera` object, checked; near and far default to the mesh's bounding sphere."""
-    _check_keys(cam, _CAMERA_KEYS, file, "camera.")
-    eye = _vec3(cam, "eye", file, "camera.eye")
-    target = _vec3(cam, "target", file, "camera.target")
-    up = _vec3(cam, "up", file, "camera.up", default=[0.0, 1.0, 0.0])
-    fov_y = _number(cam, "fov_y", file, "camera.fov_y", default=40.0, lo=0.0, lo_open=True)
-    if fov_y >= 180:
-        raise _fail(f"must be below 180 degrees, got {fov_y}", file, "camera.fov_y")
+def _parse_camera(cam: Any, mesh: Mesh, file: str | os.PathLike | None) -> Camera:
+    """The `camera` (its types and ranges checked by `SceneFile`): a view direction and an up that is not along it;
+    near and far default to the mesh's bounding sphere."""
+    eye, target, up = (np.asarray(v, np.float64) for v in (cam.eye, cam.target, cam.up))
+    fov_y = cam.fov_y
     view = target - eye
     dist = float(np.linalg.norm(view))
     if not dist <= FLOAT32_MAX:
@@ -455,23 +352,16 @@ def _parse_camera(cam: dict, mesh: Mesh, file: str | os.PathLike | None) -> Came
     depth_to_centre = float(np.dot(centre - eye, view / dist))
     default_far = max(depth_to_centre + radius, 1e-3) * 1.01 + 1e-6
     default_near = max(depth_to_centre - radius, default_far * 1e-3) * 0.99
-    near = _number(cam, "near", file, "camera.near", default=default_near, lo=0.0, lo_open=True)
-    far = _number(cam, "far", file, "camera.far", default=max(default_far, near * 1.01))
+    near = default_near if cam.near is None else cam.near
+    far = max(default_far, near * 1.01) if cam.far is None else cam.far
     if far <= near:
         raise _fail(f"must be greater than camera.near ({near}), got {far}", file, "camera.far")
     return Camera(eye=eye, target=target, up=up, fov_y=np.float64(fov_y), near=np.float64(near), far=np.float64(far))
 
 
-def _parse_constants(data: dict, file: str | os.PathLike | None) -> dict[str, np.float64]:
-    """The shading constants (gain, bias, thickness constants, shininess), checked against their ranges."""
-    ranges = {"gain": (0, 1), "bias": (0, 1), "wash_reduction": (0, 1)}
-    consts = {}
-    for key, default in DEFAULT_CONSTANTS.items():
-        lo, hi = ranges.get(key, (0, None))
-        consts[key] = np.float64(_number(data, key, file, key, default=default, lo=lo, hi=hi))
-    for key in ("gain", "bias"):
-        if not 0 < consts[key] < 1:
-            raise _fail(f"must be strictly between 0 and 1, got {float(consts[key])}", file, key)
+def _parse_constants(model: Any, file: str | os.PathLike | None) -> dict[str, np.float64]:
+    """The shading constants (their ranges checked by `SceneFile`), whose product k_specular x k_wash fits float32."""
+    consts = {key: np.float64(getattr(model, key)) for key in DEFAULT_CONSTANTS}
     wash_max = float(consts["k_specular"] * consts["k_wash"])
     if not wash_max <= FLOAT32_MAX:  # the thickest wash, the LUT's wash_max: each factor fits float32, the product not
         raise _fail(f"k_specular x k_wash = {wash_max:g} (the thickest wash) is out of float32 range", file, "k_wash")
@@ -490,38 +380,25 @@ def parse_scene(
 
     `shading` and `size` (width, height) override the file's.
     """
-    if not isinstance(data, dict):
-        raise _fail(f"a scene must be a JSON object, got {type(data).__name__}", file)
+    model = validate(SceneFile, data, file, what="scene")  # keys, types, ranges, float32: before anything is read
     base = Path(base) if base is not None else (Path(file).parent if file is not None else Path("."))
-    _check_keys(data, _TOP_KEYS, file)
-
-    width, height = _parse_size(data, file, size)
-    if "mesh" not in data:
-        raise _fail("missing key", file, "mesh")
-    if not isinstance(data["mesh"], str) or not data["mesh"]:
-        raise _fail("must be the path of a mesh file", file, "mesh")
-    mesh = load_mesh(base / data["mesh"], field="mesh", file=file)
-    camera = _parse_camera(_object(data, "camera", file), mesh, file)
-    light = _object(data, "light", file)
-    _check_keys(light, {"direction"}, file, "light.")
-    direction = _vec3(light, "direction", file, "light.direction")
-    if np.linalg.norm(direction) == 0:
-        raise _fail("must not be the zero vector", file, "light.direction")
-    mode = shading if shading is not None else data.get("shading", "per-pixel")
+    width, height = _parse_size(model.image, file, size)
+    mesh = load_mesh(base / model.mesh, field="mesh", file=file)
+    camera = _parse_camera(model.camera, mesh, file)
+    direction = np.asarray(model.light.direction, np.float64)
+    mode = shading if shading is not None else model.shading
     if mode not in SHADING_MODES:
-        raise _fail(f"must be one of {', '.join(SHADING_MODES)}, got {mode!r}", file, "shading")
-    backfaces = data.get("backfaces", "auto")
-    if backfaces not in BACKFACE_MODES:
-        raise _fail(f"must be one of {', '.join(BACKFACE_MODES)}, got {backfaces!r}", file, "backfaces")
+        raise _fail(f"must be one of {', '.join(SHADING_MODES)}, got {mode!r}", file, "--shading")
+    backfaces = model.backfaces
     libraries: dict = {}
     glazes = _parse_glazes(data, file, base, libraries)
     paper = _parse_paper(data, file, base, libraries, glazes)
-    consts = _parse_constants(data, file)
+    consts = _parse_constants(model, file)
 
     params = Params(wash=glazes[0].pigment, unlit=glazes[1].pigment, paper=paper, light=direction, **consts,
                     observation=glazes[0].observation)  # fmt: skip
     look = parse_watercolour(
-        data.get("watercolour"), file=file, base=base, mesh=mesh, params=params,
+        model.watercolour or None, file=file, base=base, mesh=mesh, params=params,
         pigment=lambda spec, key: _pigment(spec, key, file, base),
     )  # fmt: skip
     return Scene(

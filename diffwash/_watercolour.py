@@ -43,41 +43,24 @@ from .look._xla import apart
 from . import shading
 from ._errors import DiffwashError
 from ._interpolate import barycentrics, interpolate
-from ._io import check_float32, check_input_file, finite_number
+from ._io import check_input_file
+from ._scene_schema import EFFECT_MODELS, ON_BY_DEFAULT
 from ._rasterize import rasterize as rasterize_op
 
 __all__ = ["Watercolour", "parse_watercolour", "watercolour_to_dict", "watercolour_files", "WATERCOLOUR_KEYS",
            "LOOK_PARAMETERS", "look_parameter_check"]
 
-#: Each effect's scene keys that are not `Look` leaves (files, seeds, choices, sizes), with their defaults (None:
-#: no default, the key is optional), in the documented order. The leaves' keys, defaults and bounds are declared
-#: once, on `Look` (`look.leaf_specs`): an effect with leaves only needs no entry here (it comes last).
-_OPTIONS: dict[str, dict[str, Any]] = {
-    "paper": {"image": None, "seed": 0, "relief": 2.0},
-    "edges": {},
-    "unevenness": {},
-    "strokes": {"direction": "max", "length": 0.25, "seed": 0},
-    "shadow": {},
-    "hatching": {"scale": 190.0},
-    "mix": {"wash": None, "unlit": None, "map": None},
-}
 #: Scene keys of the `Look` leaves: leaf -> (effect, key).
 _LEAF_KEYS: dict[str, tuple[str, str]] = {leaf: (spec.effect, spec.key) for leaf, spec in wl.leaf_specs().items()}
-
-
-def _keys() -> dict[str, dict[str, Any]]:
-    """Every effect's keys with their defaults: its options, then its leaves' (their values when turned on)."""
-    out = {effect: dict(options) for effect, options in _OPTIONS.items()}
-    for spec in wl.leaf_specs().values():
-        out.setdefault(spec.effect, {})[spec.key] = spec.on
-    return out
-
-
-#: The keys of each effect's object, with their defaults (None: no default, the key is optional).
-WATERCOLOUR_KEYS: dict[str, dict[str, Any]] = _keys()
+#: The keys of each effect's object, with their defaults (None: no default), as `_scene_schema` declares them: its
+#: options, then its leaves' (their values when turned on, from `look.leaf_specs`).
+WATERCOLOUR_KEYS: dict[str, dict[str, Any]] = {
+    effect: {k: None if f.is_required() else f.default for k, f in model.model_fields.items()}
+    for effect, model in EFFECT_MODELS.items()
+}  # fmt: skip
 #: Effects on unless the scene says otherwise: those whose leaves are on in `Look`'s defaults (hatching and
 #: the mix are asked for).
-_ON_BY_DEFAULT = tuple(dict.fromkeys(spec.effect for spec in wl.leaf_specs().values() if spec.fit and spec.default != 0))
+_ON_BY_DEFAULT = ON_BY_DEFAULT
 #: Upper bounds of the keys that have one.
 _AT_MOST = {f"{spec.effect}.{spec.key}": spec.at_most for spec in wl.leaf_specs().values() if spec.at_most is not None}
 
@@ -119,55 +102,13 @@ def _fail(msg: str, file: Any, field: str) -> DiffwashError:
     return DiffwashError(msg, file=file, field=field)
 
 
-def _effect(spec: dict, name: str, file: Any) -> dict | None:
-    """An effect's settings with defaults, or None when it is off."""
-    field = f"watercolour.{name}"
-    v = spec.get(name, {} if name in _ON_BY_DEFAULT else False)
-    if v is False:
-        return None
-    if v is True:
-        v = {}
-    if not isinstance(v, dict):
-        raise _fail(f"must be a JSON object or false, got {type(v).__name__}", file, field)
-    allowed = WATERCOLOUR_KEYS[name]
-    for k in v:
-        if k not in allowed:
-            raise _fail(f"unknown key; one of {', '.join(allowed)}", file, f"{field}.{k}")
-    return {**allowed, **v}
-
-
-def _amount(settings: dict, effect: str, key: str, file: Any, *, positive: bool = False) -> float:
-    field = f"watercolour.{effect}.{key}"
-    v = settings[key]
-    if not finite_number(v):
-        raise _fail(f"must be a finite number, got {v!r}", file, field)
-    v = float(check_float32(v, file=file, field=field))
-    if v < 0 or (positive and v == 0):
-        raise _fail(f"must be {'> 0' if positive else '>= 0'}, got {v!r}", file, field)
-    top = _AT_MOST.get(f"{effect}.{key}")
-    if top is not None and v > top:
-        raise _fail(f"must be within [0, {top:g}], got {v!r}", file, field)
-    return v
-
-
-def _seed(settings: dict, effect: str, file: Any) -> int:
-    v = settings["seed"]
-    if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v < 2**32:
-        raise _fail(f"must be a whole number in [0, 2^32), got {v!r}", file, f"watercolour.{effect}.seed")
-    return v
-
-
-def _paper(settings: dict | None, file: Any, base: Path) -> wl.ScreenTextures:
+def _paper(settings: Any, file: Any, base: Path) -> wl.ScreenTextures:
     if settings is None:
         return wl.screen_textures()
-    seed = _seed(settings, "paper", file)
-    relief = _amount(settings, "paper", "relief", file)
-    image = settings["image"]
+    seed, relief, image = settings.seed, settings.relief, settings.image
     if image is None:
         return wl.screen_textures(seed=seed, relief=relief)
     field = "watercolour.paper.image"
-    if not isinstance(image, str) or not image:
-        raise _fail("must be the path of a greyscale image file", file, field)
     path = base / image
     if not os.path.lexists(path):
         raise _fail(f"no such image file: {path}", file, field)
@@ -180,20 +121,10 @@ def _paper(settings: dict | None, file: Any, base: Path) -> wl.ScreenTextures:
 
 
 def _mix_map(spec: Any, vertices: np.ndarray, file: Any, base: Path) -> np.ndarray:
+    """The mix per vertex (`spec` checked by `SceneFile`: a list, a file name or an axis), one per vertex in [0, 1]."""
     field = "watercolour.mix.map"
-    if spec is None:
-        raise _fail("missing key: a per-vertex list, a .npy file or {\"axis\": [x, y, z]}", file, field)
-    if isinstance(spec, dict):
-        for k in spec:
-            if k not in ("axis", "softness"):
-                raise _fail("unknown key; one of axis, softness", file, f"{field}.{k}")
-        axis = spec.get("axis")
-        if not isinstance(axis, list) or len(axis) != 3 or not all(finite_number(a) for a in axis) or not any(axis):
-            raise _fail(f"must be a non-zero list of 3 finite numbers, got {axis!r}", file, f"{field}.axis")
-        soft = spec.get("softness", 0.25)
-        if not finite_number(soft) or not 0 < soft <= 10:
-            raise _fail(f"must be a number in (0, 10], got {soft!r}", file, f"{field}.softness")
-        return wl.mix_along_axis(vertices, axis, softness=float(soft))
+    if not isinstance(spec, (str, list)):
+        return wl.mix_along_axis(vertices, list(spec.axis), softness=float(spec.softness))
     if isinstance(spec, str):
         path = base / spec
         check_input_file(path, file=file, field=field)
@@ -201,22 +132,18 @@ def _mix_map(spec: Any, vertices: np.ndarray, file: Any, base: Path) -> np.ndarr
             spec = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as e:
             raise _fail(f"{path}: not a NumPy .npy array ({e})", file, field) from None
-    elif isinstance(spec, list):
-        if not all(finite_number(x) for x in spec):
-            raise _fail("must be a list of finite numbers, one per vertex", file, field)
-    else:
-        raise _fail(f"must be a list, a .npy file or an object, got {type(spec).__name__}", file, field)
     return wl.check_mix_map(spec, len(vertices), file=file, field=field)
 
 
 def parse_watercolour(
     spec: Any, *, file: Any, base: Path, mesh: Any, params: shading.Params, pigment: Callable[[Any, str], Any]
 ) -> Watercolour | None:
-    """The `Watercolour` of a scene's `"watercolour"` value (None: absent or `false`).
+    """The `Watercolour` of a scene's `"watercolour"` object (None: absent or `false`).
 
     **Arguments:**
 
-    - `spec`: the JSON value; `file`: the scene file (for errors); `base`: the
+    - `spec`: the object as `SceneFile` checked it (`_scene_schema.WatercolourObject`: keys, types and ranges),
+      or None; `file`: the scene file (for errors); `base`: the
       folder relative paths start from.
     - `mesh`: the scene's `Mesh`; `params`: its `Params`.
     - `pigment(spec, key)`: the scene's pigment reader (names, files, K and S).
@@ -228,42 +155,36 @@ def parse_watercolour(
     """
     if spec is None or spec is False:
         return None
-    if not isinstance(spec, dict):
-        raise _fail(f"must be a JSON object, got {type(spec).__name__}", file, "watercolour")
-    for k in spec:
-        if k not in WATERCOLOUR_KEYS:
-            raise _fail(f"unknown key; one of {', '.join(WATERCOLOUR_KEYS)}", file, f"watercolour.{k}")
-    eff = {name: _effect(spec, name, file) for name in WATERCOLOUR_KEYS}
+    # Each effect's settings (`true`: its defaults), or None when it is off.
+    eff = {name: EFFECT_MODELS[name]() if v is True else (None if v is False else v) for name, v in spec}
     # An effect that is off contributes 0, but for a step (the shadow's bias), which keeps its default.
     values = {leaf: 0.0 if spec.fit else spec.default for leaf, spec in wl.leaf_specs().items()}
     for leaf, (effect, key) in _LEAF_KEYS.items():
         if eff[effect] is not None:
-            values[leaf] = _amount(eff[effect], effect, key, file)
+            values[leaf] = float(getattr(eff[effect], key))
     screen = _paper(eff["paper"], file, base)
     vertices = np.asarray(mesh.vertices, np.float64)
     strokes = None
     if eff["strokes"] is not None:
         s = eff["strokes"]
-        if s["direction"] not in ("min", "max"):
-            raise _fail(f"must be \"min\" or \"max\", got {s['direction']!r}", file, "watercolour.strokes.direction")
-        length = _amount(s, "strokes", "length", file, positive=True)
+        length = float(s.length)
         size = float(np.linalg.norm(np.ptp(vertices, axis=0)))  # the mesh's bounding-box diagonal
         if length > 10 * size:
             raise _fail(f"must be at most 10 times the mesh's size ({size:.4g}, its bounding box's diagonal: "
                         f"a stroke longer than the object traces nothing), got {length:g}", file,
                         "watercolour.strokes.length")  # fmt: skip
-        strokes = wl.stroke_field(vertices, np.asarray(mesh.faces), np.asarray(mesh.normals), direction=s["direction"],
-                                  length=length, seed=_seed(s, "strokes", file))  # fmt: skip
+        strokes = wl.stroke_field(vertices, np.asarray(mesh.faces), np.asarray(mesh.normals), direction=s.direction,
+                                  length=length, seed=s.seed)  # fmt: skip
     tam, scale = None, WATERCOLOUR_KEYS["hatching"]["scale"]
     if eff["hatching"] is not None:
-        scale = _amount(eff["hatching"], "hatching", "scale", file, positive=True)
+        scale = float(eff["hatching"].scale)
         tam = [np.asarray(level, np.float32) for level in wl.tonal_art_map()]
     mix = wash_b = unlit_b = None
     if eff["mix"] is not None:
         m = eff["mix"]
-        wash_b = params.wash if m["wash"] is None else pigment(m["wash"], "watercolour.mix.wash")
-        unlit_b = params.unlit if m["unlit"] is None else pigment(m["unlit"], "watercolour.mix.unlit")
-        mix = _mix_map(m["map"], vertices, file, base)
+        wash_b = params.wash if m.wash is None else pigment(_json(m.wash), "watercolour.mix.wash")
+        unlit_b = params.unlit if m.unlit is None else pigment(_json(m.unlit), "watercolour.mix.unlit")
+        mix = _mix_map(m.map, vertices, file, base)
     looks = [wl.pigment_look(q, screen.paper) for q in (params.wash, wash_b or params.wash, params.unlit, unlit_b or params.unlit)]
     return Watercolour(
         look=wl.Look(**{k: np.float64(v) for k, v in values.items()}),
@@ -279,6 +200,11 @@ def parse_watercolour(
         effects=tuple(k for k, v in eff.items() if v is not None),
         tam_packed=None if tam is None else wl.pack_tam(tam),
     )
+
+
+def _json(v: Any) -> Any:
+    """A checked value back as the JSON it was (the keys it gave)."""
+    return v.model_dump(exclude_unset=True) if hasattr(v, "model_dump") else v
 
 
 #: The look's continuous parameters by their scene keys (`watercolour.<effect>.<key>` -> `Look` leaf): what

@@ -57,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from . import colorimetry, spectral
+from . import _schema, colorimetry, spectral
 from ._errors import DiffwashError
 from ._io import check_float32, env_limit, open_input
 
@@ -367,6 +367,25 @@ def _band_columns(header: list[str], path: Path) -> tuple[list[int], tuple[float
     return [names.index(c) for c in ("r", "g", "b")], None
 
 
+def _checked_rows(model: str, body: list, header: list[str], col: dict[str, int], vcols: list[int], path: Path) -> list:
+    """The rows as `_schema.MeasurementRow`s or `QueryRow`s (`model`), all checked at once: the first problem
+    names the file, the line and the column."""
+    columns: dict[str, Any] = {k: k for k in col}
+    if model == "MeasurementRow":
+        rows = [{"pigment": r[col["pigment"]], "amount": r[col["amount"]], "ground": r[col["ground"]],
+                 "values": [r[j] for j in vcols]} for _, r in body]  # fmt: skip
+        columns["values"] = [header[j].strip() for j in vcols]
+    else:
+        rows = [{"pigment": r[col["pigment"]], "amount": r[col["amount"]], "ground": r[col["ground"]]} for _, r in body]
+    if model not in _ADAPTERS:
+        _ADAPTERS[model] = _schema.row_adapter(getattr(_schema, model))
+    return _schema.validate_rows(_ADAPTERS[model], rows, path, [n for n, _ in body], columns)
+
+
+#: The row checkers, made at first use (building one takes a few milliseconds).
+_ADAPTERS: dict[str, Any] = {}
+
+
 def read_measurements(path: str | os.PathLike, *, linear: bool = False, max_rows: int | None = None) -> Measurements:
     """Read and validate a measurement table (format in the module docstring).
 
@@ -388,21 +407,12 @@ def read_measurements(path: str | os.PathLike, *, linear: bool = False, max_rows
     col = _key_columns(header, path)
     vcols, grid = _band_columns(header, path)
     pigs, amts, gnds, vals, lines, sizes = [], [], [], [], [], []
-    for n, row in body:
-        names, amounts, size = parse_stack(row[col["pigment"]], row[col["amount"]], path=path, line=n)
-        ground = row[col["ground"]].strip().lower()
-        if not ground:
-            raise _fail("empty ground", path, n, "ground")
-        v = []
-        for j in vcols:
-            x = _number(row[j].strip(), path, n, header[j].strip())
-            if x < 0:
-                raise _fail(f"a reflectance must be >= 0, got {row[j].strip()}", path, n, header[j].strip())
-            v.append(x)
+    for (n, _), row in zip(body, _checked_rows("MeasurementRow", body, header, col, vcols, path)):
+        names, amounts, size = parse_stack(row.pigment, row.amount, path=path, line=n)
         pigs.append(names)
         amts.append(amounts)
-        gnds.append(ground)
-        vals.append(v)
+        gnds.append(row.ground.strip().lower())
+        vals.append(row.values)
         lines.append(n)
         sizes.append(size)
     if not pigs:
@@ -501,14 +511,11 @@ def read_queries(path: str | os.PathLike) -> Queries:
     header, body = _read_csv(path)
     col = _key_columns(header, path)
     pigs, amts, gnds, lines, sizes = [], [], [], [], []
-    for n, row in body:
-        names, amounts, size = parse_stack(row[col["pigment"]], row[col["amount"]], path=path, line=n)
-        ground = row[col["ground"]].strip().lower()
-        if not ground:
-            raise _fail("empty ground", path, n, "ground")
+    for (n, _), row in zip(body, _checked_rows("QueryRow", body, header, col, [], path)):
+        names, amounts, size = parse_stack(row.pigment, row.amount, path=path, line=n)
         pigs.append(names)
         amts.append(amounts)
-        gnds.append(ground)
+        gnds.append(row.ground.strip().lower())
         lines.append(n)
         sizes.append(size)
     if not pigs:

@@ -405,7 +405,7 @@ def _scene_with(tmp_path, **changes):
     (lambda d: _scene_with(d, camera={"eye": [1e300, 0, 3], "target": [0, 0, 0]}),
      ["render", "scene.json", "-o", "x.png"], "scene.json: camera.eye[0]: 1e+300"),
     (lambda d: _scene_with(d, wash={"K": [1e300, 1, 1], "S": [0, 0, 0]}), ["bake", "scene.json", "-o", "lut.png"],
-     "scene.json: wash.K: 1e+300"),
+     "scene.json: wash.K[0]: 1e+300"),
     (lambda d: (d / "p.json").write_text('{"name": "p", "K": [1, 1e300, 1], "S": [0, 0, 0]}'),
      ["swatches", "p.json", "-o", "c.png"], "p.json: K: 1e+300"),
     (lambda d: (d / "lib.json").write_text('{"pigments": [{"name": "a", "K": [1, 1, 1], "S": [0, 0, 0]}, '

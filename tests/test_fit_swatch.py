@@ -169,7 +169,7 @@ def test_pigment_file_and_report(tmp_path):
         (lambda L: L.pop("paper"), "paper", "missing key"),
         (lambda L: L["patches"][0].update(box=[10, 10, 10, 20]), "patches[0].box", "empty"),
         (lambda L: L["patches"][1].update(box=[300, 200, 400, 300]), "patches[1].box", "outside"),
-        (lambda L: L["patches"][0].update(ground="white"), "patches[0].ground", "unknown ground 'white'"),
+        (lambda L: L["patches"][0].update(ground="white"), "patches[0].ground", "must be one of paper, black, got 'white'"),
         (lambda L: L.pop("black"), "patches[1].ground", "no 'black' box"),
         (lambda L: L["patches"][0].update(coats=float("nan")), "patches[0].coats", "coats > 0"),
         (lambda L: L["paper"].update(reflectance=[0.9, 0.9]), "paper.reflectance", "3 linear reflectances"),

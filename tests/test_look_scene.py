@@ -79,10 +79,11 @@ def test_the_look_is_drawn_finite_and_visible(tmp_path):
 
 BAD = [
     ({"edges": {"width": -1}}, "watercolour.edges.width", "must be >= 0"),
-    ({"edges": {"darkening": "x"}}, "watercolour.edges.darkening", "finite number"),
-    ({"paper": {"granulation": 1.5}}, "watercolour.paper.granulation", "within [0, 1]"),
+    ({"edges": {"darkening": "x"}}, "watercolour.edges.darkening", "must be a number, got 'x'"),
+    ({"paper": {"granulation": 1.5}}, "watercolour.paper.granulation", "must be <= 1, got 1.5"),
     ({"paper": {"image": "nowhere.png"}}, "watercolour.paper.image", "no such image file"),
-    ({"paper": {"seed": -3}}, "watercolour.paper.seed", "whole number"),
+    ({"paper": {"seed": -3}}, "watercolour.paper.seed", "must be >= 0, got -3"),
+    ({"paper": {"seed": 1.5}}, "watercolour.paper.seed", "whole number"),
     ({"strokes": {"direction": "diagonal"}}, "watercolour.strokes.direction", "min"),
     ({"strokes": {"length": 0}}, "watercolour.strokes.length", "> 0"),
     ({"mix": {"map": [0.5, 0.5]}}, "watercolour.mix.map", "one value per vertex"),
@@ -90,7 +91,7 @@ BAD = [
     ({"mix": {}}, "watercolour.mix.map", "missing key"),
     ({"mix": {"wash": {"pigment": "No Such Pigment"}, "map": {"axis": [1, 0, 0]}}}, "watercolour.mix.wash.pigment", "unknown pigment"),
     ({"edge": {}}, "watercolour.edge", "unknown key"),
-    ({"shadow": {"strength": 2}}, "watercolour.shadow.strength", "within [0, 1]"),
+    ({"shadow": {"strength": 2}}, "watercolour.shadow.strength", "must be <= 1, got 2"),
     ({"hatching": 3}, "watercolour.hatching", "JSON object or false"),
     ([1, 2], "watercolour", "JSON object"),
 ]

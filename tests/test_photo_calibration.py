@@ -43,10 +43,10 @@ def _layout(**extra):
 
 
 @pytest.mark.parametrize("ref, field, words", [
-    ({"box": [40, 0, 50, 10], "lab": [120, 0, 0]}, "references[0].lab", "L must lie in [0, 100]"),
-    ({"box": [40, 0, 50, 10], "lab": [50, 300, 0]}, "references[0].lab", "[-200, 200]"),
+    ({"box": [40, 0, 50, 10], "lab": [120, 0, 0]}, "references[0].lab[0]", "must be <= 100, got 120"),
+    ({"box": [40, 0, 50, 10], "lab": [50, 300, 0]}, "references[0].lab[1]", "must be <= 200, got 300"),
     ({"box": [90, 0, 150, 10], "lab": [50, 0, 0]}, "references[0].box", "outside the 100x80 photo"),
-    ({"box": [40, 0, 50, 10], "reflectance": [0.5, 1.2, 0.1]}, "references[0].reflectance", "in [0, 1]"),
+    ({"box": [40, 0, 50, 10], "reflectance": [0.5, 1.2, 0.1]}, "references[0].reflectance[1]", "must be <= 1, got 1.2"),
     ({"box": [40, 0, 50, 10], "lab": [50, 0, 0], "reflectance": [0.5, 0.5, 0.5]}, "references[0]", "exactly one"),
     ({"box": [40, 0, 50, 10], "spectrum": [0.5, 0.5]}, "references[0].wavelengths", "missing"),
     ({"box": [40, 0, 50, 10], "spectrum": [0.5, 0.5], "wavelengths": [450, 650]}, "references[0].wavelengths",

@@ -60,7 +60,8 @@ from scipy.ndimage import binary_erosion
 
 from .. import colorimetry
 from .._errors import DiffwashError
-from .._io import check_float32, finite_number, read_json
+from .._io import check_float32, read_json
+from .._schema import LayoutFile, validate
 from ..shading import DEFAULT_PAPER
 from ._camera import CameraModel, fit_camera, needed_references, spectrum_lab
 from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
@@ -70,9 +71,6 @@ __all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "patch_paint
            "reference_readings", "camera_floor"]  # fmt: skip
 
 GROUNDS = ("paper", "black")
-_LAYOUT_KEYS = {"paper", "black", "patches", "references", "name", "meta"}
-_REFERENCE_KEYS = {"box", "lab", "reflectance", "spectrum", "wavelengths"}
-_PATCH_KEYS = ("box", "coats", "ground", "pigment")
 
 
 @dataclass(frozen=True)
@@ -177,144 +175,53 @@ def _fail(msg: str, file: Any, fld: str | None) -> DiffwashError:
     return DiffwashError(msg, file=file, field=fld)
 
 
-def _box(value: Any, file: Any, fld: str, size: tuple[int, int] | None) -> Box:
-    if not isinstance(value, list) or len(value) != 4 or not all(finite_number(v) for v in value):
-        raise _fail(f"must be [x0, y0, x1, y1] (4 pixel coordinates), got {value!r}", file, fld)
-    for i, v in enumerate(value):
-        check_float32(v, file=file, field=f"{fld}[{i}]")
-    if not all(float(v).is_integer() for v in value):
-        raise _fail(f"must be whole pixel coordinates, got {value!r}", file, fld)
+def _box(value: list, file: Any, fld: str, size: tuple[int, int] | None) -> Box:
+    """A box (whole, non-empty: `LayoutFile`) inside the photo of `size`."""
     x0, y0, x1, y1 = (int(v) for v in value)
-    if x1 <= x0 or y1 <= y0:
-        raise _fail(f"is empty: needs x0 < x1 and y0 < y1, got {value!r}", file, fld)
     if size is not None:
         w, h = size
         if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
-            raise _fail(f"{value!r} lies outside the {w}x{h} photo (as displayed, after EXIF orientation)", file, fld)
+            raise _fail(f"{[x0, y0, x1, y1]!r} lies outside the {w}x{h} photo (as displayed, after EXIF orientation)",
+                        file, fld)  # fmt: skip
     return Box(x0, y0, x1, y1)
-
-
-def _object(obj: dict, key: str, file: Any, keys: set[str]) -> dict:
-    return _entry(obj[key], key, file, keys)
-
-
-def _entry(v: Any, where: str, file: Any, keys: Any) -> dict:
-    """`v` (the layout's field `where`) as a JSON object of only `keys`, with a `box`."""
-    if not isinstance(v, dict):
-        raise _fail(f"must be a JSON object, got {type(v).__name__}", file, where)
-    for k in v:
-        if k not in keys:
-            raise _fail(f"unknown key (expected {', '.join(sorted(keys))})", file, f"{where}.{k}")
-    if "box" not in v:
-        raise _fail("missing key", file, f"{where}.box")
-    return v
 
 
 def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tuple[int, int] | None = None) -> Layout:
     """Validate a layout (parsed JSON) against a photo of `size = (width, height)`.
 
-    Errors name the file and the field, e.g. `card.json: patches[2].ground: unknown ground 'white'`.
+    Keys, types and ranges are `diffwash._schema.LayoutFile`'s, checked first; here what needs the photo's size
+    or more than one key. Errors name the file and the field, e.g. `card.json: patches[2].box: ... lies outside`.
     """
-    if not isinstance(data, dict):
-        raise _fail(f"a layout must be a JSON object, got {type(data).__name__}", file, None)
-    for k in data:
-        if k not in _LAYOUT_KEYS:
-            raise _fail(f"unknown key (expected {', '.join(sorted(_LAYOUT_KEYS))})", file, k)
-    if "paper" not in data:
-        raise _fail("missing key: a box of bare paper is needed to calibrate exposure and white balance", file,
-                    "paper")  # fmt: skip
-    paper = _object(data, "paper", file, {"box", "reflectance"})
-    paper_box = _box(paper["box"], file, "paper.box", size)
-    refl = paper.get("reflectance", list(DEFAULT_PAPER))
-    if not isinstance(refl, list) or len(refl) != 3 or not all(finite_number(v) for v in refl):
-        raise _fail(f"must be 3 linear reflectances (red, green, blue), got {refl!r}", file, "paper.reflectance")
-    if not all(0 < v <= 1 for v in refl):
-        raise _fail(f"must be reflectances in (0, 1], got {refl!r}", file, "paper.reflectance")
-    black = None
-    if "black" in data:
-        black = _box(_object(data, "black", file, {"box"})["box"], file, "black.box", size)
-    if "patches" not in data:
-        raise _fail("missing key", file, "patches")
-    items = data["patches"]
-    if not isinstance(items, list) or not items:
-        raise _fail("must be a non-empty list of patches", file, "patches")
+    model = validate(LayoutFile, data, file, what="layout")
+    paper_box = _box(model.paper.box, file, "paper.box", size)
+    refl = model.paper.reflectance if model.paper.reflectance is not None else list(DEFAULT_PAPER)
+    black = None if model.black is None else _box(model.black.box, file, "black.box", size)
     patches = []
-    for i, p in enumerate(items):
+    for i, p in enumerate(model.patches):
         where = f"patches[{i}]"
-        _entry(p, where, file, _PATCH_KEYS)
-        for k in ("coats", "ground"):
-            if k not in p:
-                raise _fail("missing key", file, f"{where}.{k}")
-        box = _box(p["box"], file, f"{where}.box", size)
-        names, layers = _pigment_layers(p["pigment"], file, f"{where}.pigment") if "pigment" in p else ((), ())
-        amounts = _stack_coats(p["coats"], layers or (1,), file, f"{where}.coats", p.get("pigment"))
-        ground = p["ground"]
-        if ground not in GROUNDS:
-            raise _fail(f"unknown ground {ground!r} (must be 'paper' or 'black')", file, f"{where}.ground")
-        if ground == "black" and black is None:
+        box = _box(p.box, file, f"{where}.box", size)
+        names, layers = _pigment_layers(p.pigment, file, f"{where}.pigment") if p.pigment is not None else ((), ())
+        amounts = _stack_coats(p.coats, layers or (1,), file, f"{where}.coats", p.pigment)
+        if p.ground == "black" and black is None:
             raise _fail("lies on black, but the layout has no 'black' box of bare black to measure it", file,
                         f"{where}.ground")  # fmt: skip
-        patches.append(Patch(box=box, coats=float(sum(amounts)), ground=ground, pigments=names,
+        patches.append(Patch(box=box, coats=float(sum(amounts)), ground=p.ground, pigments=names,
                              amounts=amounts if names else (), layers=layers if len(layers) > 1 else ()))  # fmt: skip
-    name = data.get("name")
-    if name is not None and (not isinstance(name, str) or not name.strip()):
-        raise _fail("must be a non-empty string", file, "name")
-    refs = _references(data.get("references", []), file, size)
+    refs = tuple(Reference(box=_box(r.box, file, f"references[{i}].box", size), lab=_reference_lab(r))
+                 for i, r in enumerate(model.references))  # fmt: skip
     return Layout(paper=paper_box, paper_reflectance=np.asarray(refl, np.float64), black=black,
-                  patches=tuple(patches), name=name.strip() if name else None,
+                  patches=tuple(patches), name=model.name.strip() if model.name else None,
                   path=None if file is None else os.fspath(file), references=refs,
-                  paper_default="reflectance" not in paper)  # fmt: skip
+                  paper_default=model.paper.reflectance is None)  # fmt: skip
 
 
-def _numbers(value: Any, n: int | None, file: Any, fld: str, what: str) -> np.ndarray:
-    if not isinstance(value, list) or (n is not None and len(value) != n) or not value or \
-            not all(finite_number(v) for v in value):  # fmt: skip
-        raise _fail(f"must be {what}, got {value!r}"[:200], file, fld)
-    return np.asarray(value, np.float64)
-
-
-def _references(items: Any, file: Any, size: tuple[int, int] | None) -> tuple[Reference, ...]:
-    """The layout's `references`: boxes of known colour, each with `lab`, `reflectance` or `spectrum`."""
-    if not isinstance(items, list):
-        raise _fail("must be a list of patches of known colour", file, "references")
-    out = []
-    for i, r in enumerate(items):
-        where = f"references[{i}]"
-        _entry(r, where, file, _REFERENCE_KEYS)
-        box = _box(r["box"], file, f"{where}.box", size)
-        given = [k for k in ("lab", "reflectance", "spectrum") if k in r]
-        if len(given) != 1:
-            raise _fail("needs exactly one of lab, reflectance, spectrum (with wavelengths)", file, where)
-        if "wavelengths" in r and given != ["spectrum"]:
-            raise _fail("only goes with a spectrum", file, f"{where}.wavelengths")
-        out.append(Reference(box=box, lab=_reference_lab(r, given[0], file, where)))
-    return tuple(out)
-
-
-def _reference_lab(r: dict, kind: str, file: Any, where: str) -> np.ndarray:
-    """A reference's CIELAB (D65) from its `lab`, linear-sRGB `reflectance` or `spectrum` (range-checked)."""
-    fld = f"{where}.{kind}"
-    if kind == "lab":
-        lab = _numbers(r["lab"], 3, file, fld, "[L, a, b] (CIELAB, D65)")
-        if not 0 <= lab[0] <= 100:
-            raise _fail(f"L must lie in [0, 100], got {lab[0]:g}", file, fld)
-        if np.any(np.abs(lab[1:]) > 200):
-            raise _fail(f"a and b must lie in [-200, 200], got {lab[1]:g}, {lab[2]:g}", file, fld)
-        return lab
-    if kind == "reflectance":
-        rgb = _numbers(r["reflectance"], 3, file, fld, "3 linear sRGB reflectances (red, green, blue)")
-        if np.any(rgb < 0) or np.any(rgb > 1):
-            raise _fail(f"must be linear reflectances in [0, 1], got {rgb.tolist()}", file, fld)
-        return np.asarray(colorimetry.linear_srgb_to_lab(rgb), np.float64)
-    if "wavelengths" not in r:
-        raise _fail("missing key: a spectrum needs its wavelengths (nm)", file, f"{where}.wavelengths")
-    wl = _numbers(r["wavelengths"], None, file, f"{where}.wavelengths", "wavelengths in nm")
-    sp = _numbers(r["spectrum"], len(wl), file, fld, f"{len(wl)} reflectances, one per wavelength")
-    if np.any(np.diff(wl) <= 0) or wl[0] > 400 or wl[-1] < 700:
-        raise _fail("must increase and span 400-700 nm", file, f"{where}.wavelengths")
-    if np.any(sp < 0) or np.any(sp > 1.5):
-        raise _fail("must be reflectances in [0, 1.5]", file, fld)
-    return spectrum_lab(wl, sp)
+def _reference_lab(r: Any) -> np.ndarray:
+    """A reference's CIELAB (D65) from its `lab`, linear-sRGB `reflectance` or `spectrum` (checked: `LayoutFile`)."""
+    if r.lab is not None:
+        return np.asarray(r.lab, np.float64)
+    if r.reflectance is not None:
+        return np.asarray(colorimetry.linear_srgb_to_lab(np.asarray(r.reflectance, np.float64)), np.float64)
+    return spectrum_lab(np.asarray(r.wavelengths, np.float64), np.asarray(r.spectrum, np.float64))
 
 
 def _name_key(name: str) -> str:
@@ -383,10 +290,8 @@ def _coats(value: Any, n: int, file: Any, fld: str, pigment: Any) -> tuple[float
             if not np.isfinite(v):
                 raise _fail(f"must be finite numbers of coats, got {value!r}", file, fld)
             amounts.append(v)
-    elif finite_number(value):
+    else:  # a finite number (`LayoutFile`)
         amounts = [float(value)]
-    else:
-        raise _fail(f"must be a number of coats > 0, got {value!r} ('+'-joined numbers for a mixture)", file, fld)
     if len(amounts) != n:
         what = f"{n} pigments ({pigment.strip()})" if n > 1 else (f"1 pigment ({pigment.strip()})" if pigment
                                                                   else "the card's one pigment")  # fmt: skip

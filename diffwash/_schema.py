@@ -381,10 +381,17 @@ def _bounds(t: Any, metadata: list) -> str:
                 if k == "ge" and v == FLOAT32_TINY:
                     continue
                 sign = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}[k]
-                out.append(f"{sign} {v:g}")
+                out.append(f"{sign} {_bound(v)}")
         if isinstance(m, at.MinLen) and m.min_length:
             out.append("not empty" if t is str else f"at least {m.min_length}")
     return ", ".join(out)
+
+
+def _bound(v: float) -> str:
+    """A bound as the docs write it: a power of two above a million as `2^n` (a seed's `< 2^32`), else `%g`."""
+    if isinstance(v, int) and v > 1e6 and v & (v - 1) == 0:
+        return f"2^{v.bit_length() - 1}"
+    return f"{v:g}"
 
 
 def format_table(model: type[BaseModel]) -> str:

@@ -210,15 +210,6 @@ def test_a_per_pigment_reference_is_kept(tmp_path):
                                lib([p1, p2_on_p1]).predict(["P1+P2"], ["0.01+0.02"]).reflectance, rtol=1e-6)
 
 
-def test_the_docs_format_tables_are_the_declarations():
-    from diffwash import _schema
-
-    docs = (ROOT / "docs" / "pigments.md").read_text()
-    for model in (_schema.LibraryFile, _schema.Pigment, _schema.AmountLaw, _schema.Observation, _schema.Surface):
-        block = f"<!-- format-table: {model.__name__} -->\n{_schema.format_table(model)}\n<!-- end format-table -->"
-        assert block in docs, f"docs/pigments.md: the table of {model.__name__} differs from its declaration"
-
-
 # ---------------------------------------------------------------------------------------------------------------
 # Tables, queries and options: numbers float32 cannot hold, names that collide, a 0-1 table's typo (issue 23).
 

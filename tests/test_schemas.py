@@ -2,6 +2,8 @@
 tables), checked before anything is computed, with one-line errors naming the file and the key (or line and
 column), and the docs' format tables written from the same declarations."""
 
+import importlib.machinery
+import importlib.util
 import json
 import os
 import subprocess
@@ -18,24 +20,32 @@ from diffwash import _schema, _scene_schema, measurements
 from diffwash import look as wl
 from diffwash._errors import DiffwashError
 
-#: Each doc and the declarations whose format tables it embeds.
-DOC_MODELS = {
-    "pigments.md": [_schema.LibraryFile, _schema.Pigment, _schema.AmountLaw, _schema.Observation, _schema.Surface],
-    "scene-format.md": [_scene_schema.SceneFile, _scene_schema.Image, _scene_schema.Camera, _scene_schema.Light,
-                        _scene_schema.PigmentRef, _scene_schema.InlinePigment, _scene_schema.PaperGround,
-                        _scene_schema.LibraryGlaze, _scene_schema.WatercolourObject,
-                        *_scene_schema.EFFECT_MODELS.values(), _scene_schema.MixAxis],
-    "fitting.md": [_schema.LayoutFile, _schema.LayoutPaper, _schema.LayoutBlack, _schema.LayoutPatch,
-                   _schema.LayoutReference, _schema.MeasurementRow, _schema.QueryRow],
-}  # fmt: skip
+_spec = importlib.util.spec_from_loader("format_tables", importlib.machinery.SourceFileLoader(
+    "format_tables", str(ROOT / "scripts" / "format-tables")))  # fmt: skip
+format_tables = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(format_tables)
 
 
-@pytest.mark.parametrize("doc", list(DOC_MODELS))
+@pytest.mark.parametrize("doc", list(format_tables.DOC_MODELS))
 def test_the_docs_format_tables_are_the_declarations(doc):
     text = (ROOT / "docs" / doc).read_text()
-    for model in DOC_MODELS[doc]:
-        block = f"<!-- format-table: {model.__name__} -->\n{_schema.format_table(model)}\n<!-- end format-table -->"
-        assert block in text, f"docs/{doc}: the table of {model.__name__} differs from its declaration"
+    for model in format_tables.DOC_MODELS[doc]:
+        assert format_tables.block(model) in text, f"docs/{doc}: the table of {model.__name__} differs from its declaration"
+
+
+def test_the_script_rewrites_a_stale_table_and_check_finds_it(tmp_path, monkeypatch):
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    for doc in format_tables.DOC_MODELS:
+        (docs / doc).write_text((ROOT / "docs" / doc).read_text())
+    stale = (docs / "pigments.md").read_text().replace("absorption per unit thickness, one per band", "stale words", 1)
+    (docs / "pigments.md").write_text(stale)
+    monkeypatch.setattr(format_tables, "ROOT", tmp_path)
+    monkeypatch.setattr(sys, "argv", ["format-tables", "--check"])
+    assert format_tables.main() == 1 and (docs / "pigments.md").read_text() == stale
+    monkeypatch.setattr(sys, "argv", ["format-tables"])
+    assert format_tables.main() == 0
+    assert (docs / "pigments.md").read_text() == (ROOT / "docs" / "pigments.md").read_text()
 
 
 SCENE = json.loads((ROOT / "data" / "scenes" / "knot.json").read_text())

@@ -1,7 +1,8 @@
 """Pigment files read and checked as plain data: NumPy only, no JAX.
 
 `diffwash.pigments` builds its `Pigment`s (pytrees) from these records; `diffwash pigments` prints
-them as they are, so listing a library loads no JAX. The format is documented in `diffwash.pigments`.
+them as they are, so listing a library loads no JAX. The format is declared in `diffwash._schema`
+(`PigmentFile`, `PigmentRecord`) and documented in docs/pigments.md.
 """
 
 from __future__ import annotations
@@ -13,13 +14,14 @@ from typing import Any
 
 import numpy as np
 
+from . import _schema
 from ._errors import DiffwashError
-from ._io import check_float32, finite_number, read_json
+from ._io import read_json
 
 __all__ = ["DEFAULTS", "default_library_path", "key", "parse_record", "read_pigments", "read_records", "to_dict"]
 
-#: Values of the optional keys when a pigment file leaves them out.
-DEFAULTS = {"density": 0.05, "staining": 1.0, "granularity": 0.5}
+#: Values of the optional keys when a pigment file leaves them out (`_schema.PigmentRecord`'s defaults).
+DEFAULTS = {k: _schema.PigmentRecord.model_fields[k].default for k in ("density", "staining", "granularity")}
 
 
 def default_library_path() -> Path:
@@ -32,40 +34,24 @@ def key(name: str) -> str:
     return " ".join(name.casefold().split())
 
 
-def _rgb(value: Any, file: Any, field: str) -> np.ndarray:
-    if not isinstance(value, list) or len(value) != 3:
-        got = f"{len(value)} values" if isinstance(value, list) else type(value).__name__
-        raise DiffwashError(f"must be a list of 3 numbers (red, green, blue), got {got}", file=file, field=field)
-    for v in value:
-        if not finite_number(v):
-            raise DiffwashError(f"must be finite numbers, got {v!r}", file=file, field=field)
-        check_float32(v, file=file, field=field)
-        if v < 0:
-            raise DiffwashError(f"must be >= 0, got {v!r}", file=file, field=field)
-    return np.asarray(value, np.float64)
-
-
 def parse_record(obj: Any, *, file: str | os.PathLike | None = None, where: str = "") -> dict[str, Any]:
-    """Validate one pigment object (a dict from JSON): `name`, `K` and `S` (float64 arrays) and the optional keys.
+    """Validate one pigment object (a dict from JSON) against its declaration (`_schema.PigmentRecord`): `name`,
+    `K` and `S` (float64 arrays) and the optional keys (`DEFAULTS`).
 
-    Errors name `file` and the field, e.g. `lib.json: pigments[2].K: must be >= 0`.
+    Errors name `file` and the field, e.g. `lib.json: pigments[2].K[0]: must be >= 0`.
     """
-    ctx = f"{where}." if where else ""
-    if not isinstance(obj, dict):
-        raise DiffwashError(f"a pigment must be a JSON object, got {type(obj).__name__}", file=file, field=where or None)
-    for k in ("name", "K", "S"):
-        if k not in obj:
-            raise DiffwashError("missing key", file=file, field=ctx + k)
-    name = obj["name"]
-    if not isinstance(name, str) or not name.strip():
-        raise DiffwashError("must be a non-empty string", file=file, field=ctx + "name")
-    record: dict[str, Any] = {"name": name.strip(), "K": _rgb(obj["K"], file, ctx + "K"), "S": _rgb(obj["S"], file, ctx + "S")}
-    for k, default in DEFAULTS.items():
-        v = obj.get(k, default)
-        if not finite_number(v) or v < 0:
-            raise DiffwashError(f"must be a finite number >= 0, got {v!r}", file=file, field=ctx + k)
-        record[k] = check_float32(v, file=file, field=ctx + k)
-    return record
+    try:
+        rec = _schema.validate(_schema.PigmentRecord, obj, file, what="pigment")
+    except DiffwashError as e:
+        if not where:
+            raise
+        raise DiffwashError(e.problem, file=file, field=f"{where}.{e.field}" if e.field else where) from None
+    return _record(rec)
+
+
+def _record(rec: _schema.PigmentRecord) -> dict[str, Any]:
+    return {"name": rec.name.strip(), "K": np.asarray(rec.K, np.float64), "S": np.asarray(rec.S, np.float64),
+            **{k: float(getattr(rec, k)) for k in DEFAULTS}}  # fmt: skip
 
 
 def read_records(path: str | os.PathLike | None = None) -> list[dict[str, Any]]:
@@ -73,10 +59,8 @@ def read_records(path: str | os.PathLike | None = None) -> list[dict[str, Any]]:
     path = path if path is not None else default_library_path()
     data = read_json(path)
     if isinstance(data, dict) and "pigments" in data:
-        items = data["pigments"]
-        if not isinstance(items, list) or not items:
-            raise DiffwashError("must be a non-empty list of pigments", file=path, field="pigments")
-        records = [parse_record(p, file=path, where=f"pigments[{i}]") for i, p in enumerate(items)]
+        pigs = _schema.validate(_schema.PigmentFile, data, path).pigments
+        records = [_record(p) for p in pigs]
         _refuse_colliding_names([r["name"] for r in records], path)
         return records
     return [parse_record(data, file=path)]

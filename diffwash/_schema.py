@@ -31,7 +31,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 from ._errors import DiffwashError
 from ._io import FLOAT32_MAX
 
-__all__ = ["validate", "validate_rows", "format_table", "LibraryFile", "LayoutFile", "MeasurementRow", "QueryRow",
+__all__ = ["validate", "validate_rows", "format_table", "LibraryFile", "PigmentFile", "PigmentRecord", "LayoutFile", "MeasurementRow", "QueryRow",
            "COEFFICIENT_MAX", "GAMMA_MAX", "WEIGHT_RANGE", "name_key", "Shaped", "Vec3", "Flag"]
 
 #: The largest K or S (per unit thickness) a file may hold: products of two stay far inside float32.
@@ -149,6 +149,36 @@ def _not_blank(v: str) -> str:
 
 #: Text with a non-space character.
 Name = Annotated[Text, AfterValidator(_not_blank)]
+
+
+#: Three non-negative numbers, one per linear sRGB channel.
+Channels = Annotated[list[Coefficient], Field(min_length=3, max_length=3),
+                     Shaped("must be a list of 3 numbers (red, green, blue)")]  # fmt: skip
+
+
+class PigmentRecord(BaseModel):
+    """One pigment of a pigment file (per linear sRGB channel; keys other than these are ignored)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    name: Name = Field(description="matched ignoring case and runs of spaces; two names of one file that match so "
+                                   "are refused")  # fmt: skip
+    K: Channels = Field(description="absorption per unit thickness (one coat = thickness 1): red, green, blue")
+    S: Channels = Field(description="scattering per unit thickness: red, green, blue")
+    density: Annotated[Number, Field(ge=0)] = Field(0.05, description="Curtis's pigment density: how much the "
+                                                   "watercolour look's `paper.density` thickens the layer")  # fmt: skip
+    staining: Annotated[Number, Field(ge=0)] = Field(1.0, description="Curtis's staining power: how firmly the "
+                                                     "pigment stays on the paper's peaks (the look's granulation)")  # fmt: skip
+    granularity: Annotated[Number, Field(ge=0)] = Field(0.5, description="Curtis's granularity: how much it settles "
+                                                        "in the paper's valleys (the look's granulation)")  # fmt: skip
+
+
+class PigmentFile(BaseModel):
+    """A pigment file of several pigments (one pigment alone may also be a file: a `PigmentRecord` object)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+    pigments: list[PigmentRecord] = Field(min_length=1, description="the pigments (`PigmentRecord`, above)")
 
 
 class AmountLaw(_Part):

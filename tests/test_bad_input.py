@@ -407,10 +407,10 @@ def _scene_with(tmp_path, **changes):
     (lambda d: _scene_with(d, wash={"K": [1e300, 1, 1], "S": [0, 0, 0]}), ["bake", "scene.json", "-o", "lut.png"],
      "scene.json: wash.K[0]: 1e+300"),
     (lambda d: (d / "p.json").write_text('{"name": "p", "K": [1, 1e300, 1], "S": [0, 0, 0]}'),
-     ["swatches", "p.json", "-o", "c.png"], "p.json: K: 1e+300"),
+     ["swatches", "p.json", "-o", "c.png"], "p.json: K[1]: 1e+300"),
     (lambda d: (d / "lib.json").write_text('{"pigments": [{"name": "a", "K": [1, 1, 1], "S": [0, 0, 0]}, '
                                            '{"name": "b", "K": [1, 1, 1], "S": [0, 0, 1e39]}]}'),
-     ["pigments", "--library", "lib.json"], "lib.json: pigments[1].S: 1e+39"),
+     ["pigments", "--library", "lib.json"], "lib.json: pigments[1].S[2]: 1e+39"),
     (lambda d: (d / "l.json").write_text('{"paper": {"box": [0, 0, 5, 5]}, '
                                          '"patches": [{"box": [5, 5, 9, 9], "coats": 1e39, "ground": "paper"}]}'),
      ["fit-swatch", "card.png", "--layout", "l.json", "-o", "p.json"], "l.json: patches[0].coats: 1e+39"),

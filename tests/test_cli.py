@@ -52,7 +52,7 @@ def test_pigments_with_a_bad_library_file(run_cli, tmp_path):
     (tmp_path / "lib.json").write_text('{"pigments": [{"name": "x", "K": [1, 1], "S": [1, 1, 1]}]}')
     r = run_cli("pigments", "--library", "lib.json")
     assert r.returncode == 2
-    assert r.stderr.strip() == "diffwash: error: lib.json: pigments[0].K: must be a list of 3 numbers (red, green, blue), got 2 values"
+    assert r.stderr.strip() == "diffwash: error: lib.json: pigments[0].K: must be a list of 3 numbers (red, green, blue), got [1, 1]"
 
 
 def test_swatches_chart(run_cli, tmp_path):

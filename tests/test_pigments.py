@@ -76,16 +76,19 @@ def test_single_pigment_file_and_library_file(tmp_path):
 
 BAD = [
     ("{not json", r"bad\.json: malformed JSON at line 1 column 2"),
-    ('{"pigments": []}', r"bad\.json: pigments: must be a non-empty list"),
+    ('{"pigments": []}', r"bad\.json: pigments: must not be empty"),
     ('{"name": "x", "S": [1, 1, 1]}', r"bad\.json: K: missing key"),
     ('{"pigments": [{"name": "a", "K": [1, 1, 1], "S": [1, 1, 1]}, {"name": "b", "K": [1, 1], "S": [1, 1, 1]}]}',
-     r"bad\.json: pigments\[1\]\.K: must be a list of 3 numbers .*got 2 values"),
-    ('{"name": "x", "K": [1, -1, 1], "S": [1, 1, 1]}', r"bad\.json: K: must be >= 0, got -1"),
-    ('{"name": "x", "K": [1, 1, 1], "S": [1, NaN, 1]}', r"bad\.json: S: must be finite numbers, got nan"),
-    ('{"name": "x", "K": [1, 1, 1], "S": [1, "1", 1]}', r"bad\.json: S: must be finite numbers, got '1'"),
-    ('{"name": "", "K": [1, 1, 1], "S": [1, 1, 1]}', r"bad\.json: name: must be a non-empty string"),
-    ('{"name": "x", "K": [1, 1, 1], "S": [1, 1, 1], "density": -2}', r"bad\.json: density: must be a finite number >= 0"),
+     r"bad\.json: pigments\[1\]\.K: must be a list of 3 numbers .*got \[1, 1\]"),
+    ('{"name": "x", "K": [1, -1, 1], "S": [1, 1, 1]}', r"bad\.json: K\[1\]: must be >= 0, got -1"),
+    ('{"name": "x", "K": [1, 1, 1], "S": [1, NaN, 1]}', r"bad\.json: S\[1\]: must be a finite number, got nan"),
+    ('{"name": "x", "K": [1, 1, 1], "S": [1, "1", 1]}', r"bad\.json: S\[1\]: must be a number, got '1'"),
+    ('{"name": "", "K": [1, 1, 1], "S": [1, 1, 1]}', r"bad\.json: name: must not be empty"),
+    ('{"name": "x", "K": [1, 1, 1], "S": [1, 1, 1], "density": -2}', r"bad\.json: density: must be >= 0, got -2"),
     ('[1, 2]', r"bad\.json: a pigment must be a JSON object, got list"),
+    ('{"name": "x", "K": [1, 1, 1], "S": [1, 1, 1], "density": true}', r"bad\.json: density: must be a number, got True"),
+    ('{"name": "x", "K": [1e13, 1, 1], "S": [1, 1, 1]}', r"bad\.json: K\[0\]: must be <= 1e\+12"),
+    ('{"name": "  ", "K": [1, 1, 1], "S": [1, 1, 1]}', r"bad\.json: name: must not be blank"),
 ]
 
 

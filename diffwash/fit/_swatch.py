@@ -37,7 +37,7 @@ from .._io import read_image
 from ..library import Library, library_from_pigments
 from ..pigments import Pigment
 from ._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
-from ._kmfit import starts_for
+from ._kmfit import delta_e_displayed, starts_for
 from ._noise import camera_noise_floor, jpeg_steps
 from ._noisefit import Observations, Uncertainty, fit_noise, uncertainty
 from ._noisefit import _prediction_and_jacobian
@@ -45,7 +45,6 @@ from ._camera import RAW_SUFFIXES, find_checker, read_raw
 from ._photo import Calibration, Layout, PatchStats, calibrate, calibrate_references, inner_box, linearise
 from ._photo import parse_layout, patch_stats
 from ._photo import read_layout, swatch_pigments
-from ._table import delta_e_displayed
 
 __all__ = ["SWATCH_MODEL", "PatchResult", "SwatchFit", "fit_swatches"]
 

@@ -34,7 +34,7 @@ from ..measurements import Measurements
 from ._mixfit import MixModel, MixtureFit, fit_mixtures
 from ._photo import GROUNDS, Calibration, _name_key, patch_paints
 from ._swatch import PatchResult, _bounds, _default_name, _measure_all, _Photo
-from ._table import delta_e_displayed
+from ._kmfit import delta_e_displayed
 
 __all__ = ["SwatchMixtureFit", "fit_swatch_mixtures"]
 

@@ -11,7 +11,7 @@ from scipy.special import ndtr
 
 from diffwash import km, pigments
 from diffwash.fit import fit_swatches, fit_table, read_ntu_wpsm
-from diffwash.fit._noise import censored_mean, integrated_autocorrelation, pixel_noise
+from diffwash.fit.photos._noise import censored_mean, integrated_autocorrelation, pixel_noise
 from diffwash.swatchcard import CameraEffects, make_swatch_card, save_swatch_card
 
 from conftest import DATA

@@ -40,14 +40,14 @@ from typing import Any
 
 import numpy as np
 
-from .. import colorimetry
-from .._errors import DiffwashError
-from .._io import check_float32, open_input
-from ..library import Library, library_from_pigments
-from ..measurements import max_table_rows, refuse_absurd_amounts, refuse_colliding_names, rgb_scale, too_many_rows
-from ..pigments import Pigment
-from ._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
-from ._kmfit import delta_e_displayed, paired_start
+from ... import colorimetry
+from ..._errors import DiffwashError
+from ..._io import check_float32, open_input
+from ...library import Library, library_from_pigments
+from ...measurements import max_table_rows, refuse_absurd_amounts, refuse_colliding_names, rgb_scale, too_many_rows
+from ...pigments import Pigment
+from .._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
+from .._kmfit import delta_e_displayed, paired_start
 
 __all__ = ["MeasurementTable", "TableFit", "read_table", "fit_table", "read_ntu_wpsm", "PLAIN", "COLUMNS"]
 

@@ -77,18 +77,18 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .. import colorimetry
-from .._choices import IMAGE_LOSSES, SOLVERS
-from .._errors import DiffwashError
-from .._io import read_image, read_json
-from .._mixture import check_fittable
-from .. import look as wl
-from .. import shading
-from .._render import Surface, Visibility, _kernel_statics, _look_kernel, rasterize, surface, surface_thicknesses
-from .._scene import Scene, load_scene, parse_scene, save_scene
-from .._watercolour import LOOK_FRACTIONS, LOOK_PARAMETERS, look_parameter_check, shadow_triangles
-from ..pigments import Pigment
-from ..shading import Params
+from ... import colorimetry
+from ..._choices import IMAGE_LOSSES, SOLVERS
+from ..._errors import DiffwashError
+from ..._io import read_image, read_json
+from ..._mixture import check_fittable
+from ... import look as wl
+from ... import shading
+from ..._render import Surface, Visibility, _kernel_statics, _look_kernel, rasterize, surface, surface_thicknesses
+from ..._scene import Scene, load_scene, parse_scene, save_scene
+from ..._watercolour import LOOK_FRACTIONS, LOOK_PARAMETERS, look_parameter_check, shadow_triangles
+from ...pigments import Pigment
+from ...shading import Params
 
 __all__ = ["FITTABLE", "SOLVERS", "IMAGE_LOSSES", "ImageFit", "fit_image", "parse_fit_list", "load_cameras"]
 

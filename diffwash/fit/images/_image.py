@@ -708,7 +708,9 @@ def _state_loss(state: Any) -> Any:
 
 
 def _iterate(solver, y0, problem, max_steps: int, progress, gtol: float) -> tuple[Any, list[float], int, Any, Any]:
-    """Step the solver by hand so that each step's loss can be shown.
+    """Step the solver by hand, through its public `init`, `step` and `terminate`, so that each step's loss
+    can be shown and the stationarity test can end the fit: `optimistix.least_squares` and `minimise` offer
+    neither (docs/fitting.md, "Why the fit steps the solver itself").
 
     Converged when the solver's own test passes (optimistix's Cauchy test: a small step in both the
     parameters and the residuals, relative `rtol` plus absolute `atol`), or, after a rejected step, when

@@ -47,7 +47,8 @@ from .._errors import DiffwashError
 from .._shard import shard_leading, unpad
 from ._bandlsq import GN_TOL, loss_floor, newton_decrement
 
-__all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2", "BATCH_MODES", "delta_e_displayed"]
+__all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2", "BATCH_MODES",
+           "delta_e_displayed"]
 
 #: Internal diffuse reflectance of a binder-air surface of refractive index 1.5
 #: for light arriving diffusely from inside (Judd 1942): Saunderson's `k2`.

@@ -1,7 +1,8 @@
 r"""Several pigments, alone and mixed, from photos of their swatch cards: one joint fit, one library.
 
 A card's layout may name each patch's paint (`"pigment": "P1+P4", "coats": "1+2"`;
-a glaze stack `"pigment": "P1/P4", "coats": "1/2"`: `diffwash.fit.photos._photo`). Cards that together hold more than one pigment are
+a glaze stack `"pigment": "P1/P4", "coats": "1/2"`: `diffwash.fit.photos._photo`). Cards that
+together hold more than one pigment are
 measured exactly as a single pigment's (`diffwash.fit.photos._swatch`: the same
 calibration from the paper, the same robust patch means, clipped channels as
 bounds), and every patch becomes a row of an RGB measurement table

@@ -54,7 +54,7 @@ def _import(checkout: str | None):
     import diffwash  # noqa: F401
     from diffwash import km, pigments
     from diffwash.fit import fit_swatches
-    from diffwash.fit._table import delta_e_displayed
+    from diffwash.fit._kmfit import delta_e_displayed
     from diffwash.swatchcard import CameraEffects, make_swatch_card, save_swatch_card
 
     return km, pigments, fit_swatches, delta_e_displayed, CameraEffects, make_swatch_card, save_swatch_card

@@ -209,7 +209,7 @@ def bench_cli(folder: Path) -> list[tuple]:
 
 def bench_swatch_accuracy(folder: Path) -> list[tuple]:
     from diffwash import km
-    from diffwash.fit._table import delta_e_displayed
+    from diffwash.fit._kmfit import delta_e_displayed
 
     rows = []
     for i, name in enumerate(pigments.names()):

@@ -106,7 +106,7 @@ def _mixbox_score(m: measurements.Measurements, test: np.ndarray) -> dict[str, f
 
 def _held_by_regions(lib, m: measurements.Measurements) -> float:
     """Share of a table's rows whose measured colour lies within the prediction's `de2000_90` (NaN: none)."""
-    from diffwash.fit._mixfit import measured_lab
+    from diffwash.fit.tables._mixfit import measured_lab
 
     pred = lib.predict(m.pigments, m.amounts, m.ground)
     if pred.de2000_90 is None:

@@ -59,7 +59,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from diffwash import _regions, colorimetry, library, measurements, spectral  # noqa: E402
-from diffwash.fit import _posterior, fit_mixtures  # noqa: E402
+from diffwash.fit import fit_mixtures  # noqa: E402
+from diffwash.fit.tables import _posterior  # noqa: E402
 
 NTU = ROOT / "data" / "ntu-wpsm" / "ntu-spectral-train.csv"
 WL = np.arange(400, 781, 5.0)

@@ -8,7 +8,7 @@ error -> exposure and vignetting -> shot and read noise -> a non-sRGB tone curve
 blacks) -> JPEG (quality 90). Several cameras (tone curve, matrix, white balance) are run.
 
 (a) paper and black boxes only: the mean CIEDE2000 of every patch read by `fit-swatch`'s measurement
-    (`diffwash.fit._swatch._measure`) against its truth, and of plain scaling of the sRGB-linearised
+    (`diffwash.fit.photos._swatch._measure`) against its truth, and of plain scaling of the sRGB-linearised
     photo to the paper box, channel by channel;
 (b) 8 of the checker's patches as `references` in the layout: the mean CIEDE2000 of the other 16.
 
@@ -28,8 +28,8 @@ import numpy as np
 from PIL import Image
 
 from diffwash import colorimetry
-from diffwash.fit._camera import lab_to_linear, spectrum_lab
-from diffwash.fit._swatch import _measure
+from diffwash.fit.photos._camera import lab_to_linear, spectrum_lab
+from diffwash.fit.photos._swatch import _measure
 
 PATCH, GAP, COLS = 64, 24, 8
 BOARD = 0.12  # the board's reflectance (dark grey, not black)

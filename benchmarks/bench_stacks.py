@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 
 from diffwash import colorimetry, library, measurements  # noqa: E402
 from diffwash.fit import fit_mixtures  # noqa: E402
-from diffwash.fit._mixfit import residuals  # noqa: E402
+from diffwash.fit.tables._mixfit import residuals  # noqa: E402
 
 LIB = ROOT / "data" / "libraries" / "ntu-four.json"
 BLACK = 0.03

@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 import diffwash  # noqa: E402
 from diffwash import colorimetry, measurements  # noqa: E402
 from diffwash.fit import fit_mixtures, suggest  # noqa: E402
-from diffwash.fit._mixfit import measured_lab, pairs  # noqa: E402
+from diffwash.fit.tables._mixfit import measured_lab, pairs  # noqa: E402
 
 TABLE = ROOT / "data" / "ntu-wpsm" / "ntu-spectral-train.csv"
 PAINTS = {"P1", "P3", "P5", "P7", "P9", "P10", "P13"}

@@ -633,7 +633,7 @@ def test_a_mixture_card_of_many_patches_is_painted_in_blocks(tmp_path):
 def test_a_large_photo_is_linearised_in_blocks():
     import tracemalloc
 
-    from diffwash.fit._photo import linearise
+    from diffwash.fit.photos._photo import linearise
 
     display = np.random.default_rng(1).random((1000, 1000, 3))  # 24 MB
     expected = diffwash.colorimetry.from_display(display[:10])

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from test_mix_seen import _toy
 
-from diffwash.fit import _bandlsq, _pairs, _seen
+from diffwash.fit import _bandlsq
+from diffwash.fit.tables import _pairs, _seen
 
 
 def test_newton_decrement_is_the_share_of_the_loss_a_gauss_newton_step_removes():

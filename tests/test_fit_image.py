@@ -11,8 +11,8 @@ from conftest import DATA
 import diffwash
 from diffwash import DiffwashError
 from diffwash.fit import fit_image
-from diffwash.fit._image import _GLAZE_INPUTS, _get, _glaze, _glaze_terms, _prepare_view, _shade, load_cameras
-from diffwash.fit._image import parse_fit_list
+from diffwash.fit.images._image import _GLAZE_INPUTS, _get, _glaze, _glaze_terms, _prepare_view, _shade, load_cameras
+from diffwash.fit.images._image import parse_fit_list
 
 
 def scene_file(tmp_path, name, mesh, size=64, camera=None, **extra):

@@ -13,7 +13,7 @@ from conftest import DATA, write_fit_target
 import diffwash
 from diffwash.cli import main
 from diffwash.fit import FITTABLE, fit_image
-from diffwash.fit._image import _decode_look, _encode, _Problem, _prepare_look_view, _residuals
+from diffwash.fit.images._image import _decode_look, _encode, _Problem, _prepare_look_view, _residuals
 
 SIZE = 48
 #: The look's values in the target, and the perturbed starting values.

@@ -16,7 +16,7 @@ from conftest import DATA, write_fit_target
 import diffwash
 from diffwash.cli import main
 from diffwash.fit import FITTABLE, fit_image
-from diffwash.fit._image import _decode, _encode, _gauges, _prepare_view, _Problem, _residuals, _varying
+from diffwash.fit.images._image import _decode, _encode, _gauges, _prepare_view, _Problem, _residuals, _varying
 
 LIBRARY = DATA / "libraries" / "ntu-four.json"
 SIZE = 48

@@ -11,7 +11,7 @@ from scipy.special import ndtr
 
 from diffwash import km, pigments
 from diffwash.fit import fit_swatches, fit_table, read_ntu_wpsm
-from diffwash.fit._noise import censored_mean, integrated_autocorrelation, pixel_noise
+from diffwash.fit.photos._noise import censored_mean, integrated_autocorrelation, pixel_noise
 from diffwash.swatchcard import CameraEffects, make_swatch_card, save_swatch_card
 
 from conftest import DATA
@@ -77,7 +77,7 @@ def test_blue_at_the_noise_floor_is_a_bound_not_a_value(tmp_path, run_cli):
     assert any(q.floor[2] for q in fit.patches)
     # Predictions at coats the card does not show stay close to the truth despite the floor.
     for c in (3, 5, 8):
-        from diffwash.fit._table import delta_e_displayed
+        from diffwash.fit._kmfit import delta_e_displayed
 
         assert float(delta_e_displayed(fit.predict([c])[0], _truth(p, c, card.paper))) < 1.5
     r = run_cli("fit-swatch", "card.jpg", "--layout", "card.json", "-o", "umber.json")

@@ -9,9 +9,9 @@ from PIL import Image
 from diffwash import DiffwashError, km, pigments
 from diffwash._io import read_image
 from diffwash.fit import fit_swatches, parse_layout
-from diffwash.fit._photo import calibrate, linearise, patch_stats
+from diffwash.fit.photos._photo import calibrate, linearise, patch_stats
 from diffwash.fit import save_swatch_report
-from diffwash.fit._table import delta_e_displayed
+from diffwash.fit._kmfit import delta_e_displayed
 from diffwash.swatchcard import IDEAL, CameraEffects, make_swatch_card, save_swatch_card
 
 SEEN = (1, 2, 4)

@@ -13,7 +13,8 @@ from hypothesis import given
 from diffwash import DiffwashError, colorimetry, km, pigments
 from diffwash.fit import PLAIN, FitModel, fit_table, read_ntu_wpsm, read_table
 from diffwash.fit._kmfit import effective, ground_pair_start, log_sd, residuals, Rows
-from diffwash.fit._table import CLIP_LO, delta_e_displayed
+from diffwash.fit._kmfit import delta_e_displayed
+from diffwash.fit.tables._table import CLIP_LO
 
 
 NTU = ROOT / "data" / "ntu-wpsm" / "primaries-P1-P7.csv"  # shipped with the repository (data/ntu-wpsm/README.md)

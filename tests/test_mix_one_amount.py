@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from diffwash import colorimetry, measurements, spectral
-from diffwash.fit import _priors, fit_mixtures, uncertainty_lines
+from diffwash.fit import fit_mixtures, uncertainty_lines
+from diffwash.fit.tables import _priors
 
 WL = np.arange(400.0, 701.0, 20.0)
 

@@ -1,4 +1,4 @@
-"""Pair terms (diffwash.mixing.PairTerms, diffwash.fit._pairs): what a measured pair does beyond Duncan's sums,
+"""Pair terms (diffwash.mixing.PairTerms, diffwash.fit.tables._pairs): what a measured pair does beyond Duncan's sums,
 fitted per pair, used for that pair only, saved in the library and read back."""
 
 import dataclasses
@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from diffwash import colorimetry, library, measurements, mixing, spectral
 from diffwash.cli import main
 from diffwash.fit import MixModel, fit_mixtures, score_library
-from diffwash.fit import _pairs
+from diffwash.fit.tables import _pairs
 
 GRID = tuple(float(w) for w in range(400, 701, 25))
 NTU = ROOT / "data" / "ntu-wpsm" / "ntu-spectral-train.csv"

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from diffwash import _regions, library, mixing, spectral
 from diffwash._errors import DiffwashError
 from diffwash.cli import main
-from diffwash.fit import _posterior
+from diffwash.fit.tables import _posterior
 
 GRID = (400.0, 500.0, 600.0, 700.0)
 
@@ -186,7 +186,8 @@ def test_a_fold_is_refitted_from_the_fits_start_not_pulled_towards_the_full_fit(
     from test_mix_fit import GRID as G7, _truth, _write_table
 
     from diffwash import measurements
-    from diffwash.fit import MixModel, _mixfit, _priors, _seen, fit_mixtures
+    from diffwash.fit import MixModel, fit_mixtures
+    from diffwash.fit.tables import _mixfit, _priors, _seen
 
     pal, paper = _truth(weights=(1.0, 4.0, 0.25))
     _write_table(tmp_path / "t.csv", pal, paper)
@@ -225,7 +226,7 @@ def test_a_paints_folds_run_as_far_as_the_fit_and_pair_folds_stay_capped(tmp_pat
     from test_mix_fit import _truth, _write_table
 
     from diffwash import measurements
-    from diffwash.fit import _mixfit
+    from diffwash.fit.tables import _mixfit
 
     _write_table(tmp_path / "t.csv", *_truth())
     m = measurements.read_measurements(tmp_path / "t.csv")

@@ -1,4 +1,4 @@
-"""The CIEDE2000 refinement of spectral mixture fits (diffwash.fit._seen): its structured Jacobian is the
+"""The CIEDE2000 refinement of spectral mixture fits (diffwash.fit.tables._seen): its structured Jacobian is the
 true one, it lowers the colour error it is built for, and the command line can switch it off."""
 
 import jax
@@ -10,7 +10,7 @@ from conftest import ROOT, write_spectral_table
 from diffwash import colorimetry, measurements, spectral
 from diffwash.cli import main
 from diffwash.fit import MixModel, fit_mixtures
-from diffwash.fit import _seen
+from diffwash.fit.tables import _seen
 
 NTU = ROOT / "data" / "ntu-wpsm" / "ntu-spectral-train.csv"
 

@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 
 from diffwash import DiffwashError, colorimetry
 from diffwash._io import write_png
-from diffwash.fit._camera import _fit_curve, checker_references, find_checker, fit_camera, lab_to_linear, read_raw
-from diffwash.fit._photo import parse_layout
+from diffwash.fit.photos._camera import _fit_curve, checker_references, find_checker, fit_camera, lab_to_linear, read_raw
+from diffwash.fit.photos._photo import parse_layout
 from diffwash.swatchcard import make_swatch_card
 from diffwash import pigments
 
@@ -129,7 +129,7 @@ def test_raw_photo_is_read_linear(run_cli, tmp_path):
     H, W, _ = card.photo.shape
     linear = colorimetry.from_display(card.photo[: H // 2 * 2, : W // 2 * 2])
     write_dng(tmp_path / "card.dng", linear)
-    from diffwash.fit._camera import read_raw
+    from diffwash.fit.photos._camera import read_raw
 
     back = read_raw(tmp_path / "card.dng")
     med = lambda a, b: np.median(a[b[1] + 4 : b[3] - 4, b[0] + 4 : b[2] - 4].reshape(-1, 3), axis=0)  # noqa: E731

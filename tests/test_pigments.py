@@ -143,7 +143,8 @@ def test_the_wheel_ships_the_pigment_data(tmp_path):
     names = zipfile.ZipFile(wheel).namelist()
     assert "diffwash/data/pigments/seed.json" in names
     assert "diffwash/data/pigments/schema.json" in names
-    for package in ("diffwash", "diffwash/fit", "diffwash/look"):  # the lazily loaded packages' public APIs
+    for package in ("diffwash", "diffwash/fit", "diffwash/fit/photos", "diffwash/fit/tables", "diffwash/fit/images",
+                    "diffwash/look"):  # the lazily loaded packages' public APIs
         assert f"{package}/__init__.pyi" in names
     # And it loads from an installed copy, outside the source tree.
     target = tmp_path / "site"

@@ -15,7 +15,7 @@ from jax.test_util import check_grads
 from diffwash import DiffwashError, km, library, measurements, mixing
 from diffwash.cli import main
 from diffwash.fit import fit_mixtures, pair_folds
-from diffwash.fit._mixfit import _dense, _layer
+from diffwash.fit.tables._mixfit import _dense, _layer
 
 #: Compiled once per shape: hypothesis runs each law many times.
 stack_reflectance = eqx.filter_jit(mixing.stack_reflectance)
@@ -324,7 +324,7 @@ CARD = {"paper": {"box": [0, 0, 60, 10]}, "black": {"box": [0, 40, 10, 50]},
 
 
 def test_a_layout_holds_stack_patches_and_round_trips():
-    from diffwash.fit._photo import parse_layout
+    from diffwash.fit.photos._photo import parse_layout
 
     L = parse_layout(CARD)
     p = L.patches[0]
@@ -346,7 +346,7 @@ def test_a_layout_holds_stack_patches_and_round_trips():
 def test_bad_stack_patches_are_refused_naming_the_field(change, field, words):
     import copy
 
-    from diffwash.fit._photo import parse_layout
+    from diffwash.fit.photos._photo import parse_layout
 
     layout = copy.deepcopy(CARD)
     layout["patches"][0].update(change)

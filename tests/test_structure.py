@@ -4,7 +4,8 @@ These hold the structure issue 14 asks for: no import cycles inside `diffwash/`,
 functions only for optional dependencies, the CLI importing nothing private, and the exported
 shaders generated from the model's own functions and constants; and issue 22's start-up: the
 packages load their submodules on first use, so `import diffwash` and `diffwash --help` load none of
-the heavy dependencies.
+the heavy dependencies, and `diffwash.fit` split by family into subpackages that meet only at their
+public faces.
 """
 
 from __future__ import annotations
@@ -147,7 +148,8 @@ def test_the_command_line_uses_only_the_public_api():
 
 
 #: Lazily loaded packages: their public API is their `__init__.pyi` (what `lazy_loader.attach_stub` reads).
-LAZY_PACKAGES = ("diffwash", "diffwash.fit", "diffwash.look")
+LAZY_PACKAGES = ("diffwash", "diffwash.fit", "diffwash.fit.photos", "diffwash.fit.tables", "diffwash.fit.images",
+                 "diffwash.look")
 
 
 def _stub_names(package: str) -> dict[str, tuple[str, str | None]]:
@@ -175,6 +177,70 @@ def test_lazy_packages_offer_their_stubs_names(package):
         target = importlib.import_module(module)
         assert getattr(pkg, name) is (target if attr is None else getattr(target, attr)), name
 
+
+
+#: The fit families (issue 22): each a subpackage of `diffwash.fit` with a public face.
+FIT_FAMILIES = ("photos", "tables", "images")
+#: The private modules directly in `diffwash/fit/`: what several families use, and why it is shared.
+FIT_SHARED = {
+    "_kmfit": "the single-pigment Kubelka-Munk fit: swatch photos and tables both run it",
+    "_bandlsq": "Levenberg-Marquardt for band-structured problems: _kmfit and the mixture fit",
+    "_report": "the report figures of every family's results",
+}
+
+
+def _fit_family(module: str) -> str | None:
+    """`photos` for `diffwash.fit.photos` and its modules; `shared` for `diffwash.fit._kmfit`; None otherwise."""
+    parts = module.split(".")
+    if parts[:2] != ["diffwash", "fit"] or len(parts) < 3:
+        return None
+    return "shared" if parts[2].startswith("_") else parts[2]
+
+
+def test_fit_families_are_subpackages_with_a_public_face():
+    """Each family has a docstring and a non-empty `__all__`, all of which `diffwash.fit` offers too (as the
+    same objects), beside the family itself; `diffwash.fit`'s other names come from its shared modules."""
+    fit_names = _stub_names("diffwash.fit")
+    for family in FIT_FAMILIES:
+        package = f"diffwash.fit.{family}"
+        pkg = importlib.import_module(package)
+        assert (pkg.__doc__ or "").strip() and pkg.__all__, f"{package} has no public face"
+        assert fit_names.get(family) == (package, None), f"diffwash.fit does not name {family}"
+        missing = [n for n in pkg.__all__ if fit_names.get(n) != (package, n)]
+        assert not missing, f"diffwash.fit does not re-export {package}'s " + ", ".join(missing)
+    for name, (module, _) in fit_names.items():
+        assert module in {f"diffwash.fit.{f}" for f in FIT_FAMILIES} | {f"diffwash.fit.{m}" for m in FIT_SHARED}, (
+            f"diffwash.fit.{name} comes from {module}, neither a family's face nor a shared module")
+
+
+def test_fit_modules_sit_in_their_family():
+    """Directly in `diffwash/fit/` only the shared modules (each used by more than one family), no other
+    subpackage than the families, and no module imports another family's private modules (a shared module
+    imports no family at all): the families meet only at their public faces."""
+    fit = PACKAGE / "fit"
+    stray = sorted({p.stem for p in fit.glob("*.py") if p.name != "__init__.py"} - set(FIT_SHARED))
+    assert not stray, f"diffwash/fit/ holds {', '.join(stray)}: move each into its family, or list it in FIT_SHARED"
+    others = sorted(p.name for p in fit.iterdir() if (p / "__init__.py").exists() and p.name not in FIT_FAMILIES)
+    assert not others, f"diffwash/fit/ has subpackages {', '.join(others)} that are not fit families"
+    offenders, users = [], collections.defaultdict(set)
+    for module, found in _imports().items():
+        family = _fit_family(module)
+        if family is None:
+            continue
+        for target, _, line in found:
+            to, parts = _fit_family(target), target.split(".")
+            if to == "shared" and parts[2] != module.split(".")[2]:
+                users[parts[2]].add(family if family != "shared" else module)
+            if to is None or to == family or to == "shared":
+                continue
+            if family == "shared":
+                offenders.append(f"{module}:{line} imports {target}: a shared module imports no family")
+            elif len(parts) > 3 and _private(".".join(parts[3:])):
+                offenders.append(f"{module}:{line} imports {target}, private to diffwash.fit.{to}")
+    for name in FIT_SHARED:
+        if len(users[name]) == 1 and next(iter(users[name])) in FIT_FAMILIES:
+            offenders.append(f"diffwash.fit.{name} is used by {next(iter(users[name]))} alone: move it there")
+    assert not offenders, "\n".join(sorted(set(offenders)))
 
 #: What a command that neither renders nor fits must not import (seconds each, on 2 cores).
 HEAVY = ("jax", "colour", "matplotlib", "moderngl", "OpenEXR", "scipy", "trimesh", "PIL.Image")

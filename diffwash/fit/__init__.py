@@ -22,6 +22,12 @@ Each result has a one-page report figure: `save_swatch_report`, `save_table_repo
 (what the CLI's `--report` writes).
 
 Formats, models, gauges and what each fit can identify: docs/fitting.md.
+
+Each family is a subpackage with its own public face, and every name above is also here:
+`diffwash.fit.photos` (swatch-card photos), `diffwash.fit.tables` (measurement tables, mixtures,
+`suggest`) and `diffwash.fit.images` (target images). What the families share stays in this package's
+private modules: `_kmfit` (the single-pigment Kubelka-Munk fit, `FitModel`, `PLAIN`), `_bandlsq` (the band
+Levenberg-Marquardt) and `_report` (the report figures). A family imports another's public face only.
 """
 
 import lazy_loader as _lazy

@@ -47,7 +47,8 @@ from .._errors import DiffwashError
 from .._shard import shard_leading, unpad
 from ._bandlsq import GN_TOL, loss_floor, newton_decrement
 
-__all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2", "BATCH_MODES"]
+__all__ = ["FitModel", "Rows", "predict", "predict_jit", "residuals", "fit_rows", "ground_pair_start", "JUDD_K2", "BATCH_MODES",
+           "delta_e_displayed"]
 
 #: Internal diffuse reflectance of a binder-air surface of refractive index 1.5
 #: for light arriving diffusely from inside (Judd 1942): Saunderson's `k2`.
@@ -542,3 +543,15 @@ def log_sd(jacobian: np.ndarray, sizes: dict[str, int], loss: float) -> dict[str
         out[k] = sd[i : i + n]
         i += n
     return out
+
+
+def delta_e_displayed(pred_linear: Any, obs_linear: Any) -> np.ndarray:
+    """CIEDE2000 between two linear colours after clipping both into the sRGB cube."""
+    return np.asarray(_delta_e_displayed(np.asarray(pred_linear), np.asarray(obs_linear)), np.float64)
+
+
+@jax.jit
+def _delta_e_displayed(pred: Any, obs: Any) -> Any:
+    p = jnp.clip(colorimetry.srgb_encode(pred), 0, 1)
+    o = jnp.clip(colorimetry.srgb_encode(obs), 0, 1)
+    return colorimetry.delta_e_2000(colorimetry.srgb_to_lab(p), colorimetry.srgb_to_lab(o))

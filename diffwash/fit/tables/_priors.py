@@ -14,7 +14,7 @@ with $\overline{\cdot}$ the mean over the table's pigments (in band $b$ for $S$)
 A pigment whose rows pin its scattering or its amount law moves away from the
 population freely (its data outweigh the prior); one whose rows say nothing stays
 near its peers instead of running off. The residuals below are those priors'
-square roots, added to the fits' least-squares problems (`diffwash.fit._mixfit`):
+square roots, added to the fits' least-squares problems (`diffwash.fit.tables._mixfit`):
 per band (they couple the pigments of one band only, so the band-separable solver
 keeps its structure) and on the shared parameters.
 
@@ -100,7 +100,7 @@ LEVEL_POP = 0.63
 LEVEL = 0.0
 LEVEL_SPREAD = 1.5
 #: The model error (CIELAB units per axis) of a mixture predicted from a table that holds no mixture at all, where
-#: no fold of the table can measure it (`diffwash.fit._mixfit._model_errors`): the NTU watercolours' with each paint
+#: no fold of the table can measure it (`diffwash.fit.tables._mixfit._model_errors`): the NTU watercolours' with each paint
 #: once at 0.06 mL (13 rows), the error that makes the 90% regions hold 90% of their 198 mixtures at 0.06 mL (6.87;
 #: 7.03 for the 216 at 0.03 mL, 6.52 for the 186 at 0.12 mL: `python benchmarks/bench_oneamount.py --only ntu`).
 UNMIXED_PRIOR = 6.9

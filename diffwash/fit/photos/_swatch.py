@@ -1,6 +1,6 @@
 r"""A pigment from photos of a swatch card.
 
-The photo is linearised and calibrated from its paper (`diffwash.fit._photo`);
+The photo is linearised and calibrated from its paper (`diffwash.fit.photos._photo`);
 each patch's robust mean colour is a row (coats, ground, colour) for the shared
 Kubelka-Munk fit (`diffwash.fit._kmfit`): `log K` and `log S` per channel,
 refined with optimistix's Levenberg-Marquardt on CIE 1994 residuals, from
@@ -32,12 +32,12 @@ from typing import Any
 
 import numpy as np
 
-from .._errors import DiffwashError
-from .._io import read_image
-from ..library import Library, library_from_pigments
-from ..pigments import Pigment
-from ._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
-from ._kmfit import starts_for
+from ..._errors import DiffwashError
+from ..._io import read_image
+from ...library import Library, library_from_pigments
+from ...pigments import Pigment
+from .._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
+from .._kmfit import delta_e_displayed, starts_for
 from ._noise import camera_noise_floor, jpeg_steps
 from ._noisefit import Observations, Uncertainty, fit_noise, uncertainty
 from ._noisefit import _prediction_and_jacobian
@@ -45,14 +45,13 @@ from ._camera import RAW_SUFFIXES, find_checker, read_raw
 from ._photo import Calibration, Layout, PatchStats, calibrate, calibrate_references, inner_box, linearise
 from ._photo import parse_layout, patch_stats
 from ._photo import read_layout, swatch_pigments
-from ._table import delta_e_displayed
 
 __all__ = ["SWATCH_MODEL", "PatchResult", "SwatchFit", "fit_swatches"]
 
 #: The model for swatch photos: thickness = coats (the renderer's unit), no
 #: surface term (as the renderer), residuals in standard deviations of each
 #: patch's own noise with the calibration fitted jointly (`loss="noise"`,
-#: `diffwash.fit._noisefit`), and a weak prior (a tenth of a standard deviation
+#: `diffwash.fit.photos._noisefit`), and a weak prior (a tenth of a standard deviation
 #: per unit of log) that only settles what the photo leaves free. The
 #: diagnostics are CIEDE2000; `FitModel(thickness="linear", loss="cie94")` is
 #: the unweighted perceptual fit.
@@ -342,7 +341,7 @@ def _measure(photo: Any, layout: Any, checker: bool = False) -> _Photo:
     """Read, validate, calibrate and measure one photo (its patches, paper and black boxes).
 
     With references in the layout (or `checker`: a ColorChecker found in the photo) the photo is read through
-    a camera model fitted to them (`diffwash.fit._camera`); a raw photo is linear already.
+    a camera model fitted to them (`diffwash.fit.photos._camera`); a raw photo is linear already.
     """
     display, bits, photo_path = _load_photo(photo)
     raw = _raw_path(photo)
@@ -428,7 +427,7 @@ def fit_swatches(
       array of display sRGB in [0, 1]), or a list of them (one pigment on
       several cards).
     - `layout`: its layout (path, parsed JSON, or `Layout`; format in
-      `diffwash.fit._photo`), or a list matching `photo`.
+      `diffwash.fit.photos._photo`), or a list matching `photo`.
     - `name`: the pigment's name (default: the layout's `name`, else the photo's
       file name); patches that name their `pigment` are of that pigment.
     - `model`: the `FitModel` (default `SWATCH_MODEL`: residuals weighted by

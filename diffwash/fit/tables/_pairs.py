@@ -25,8 +25,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .. import colorimetry, mixing
-from ._bandlsq import GN_TOL, Convergence, loss_floor, newton_decrement
+from ... import colorimetry, mixing
+from .._bandlsq import GN_TOL, Convergence, loss_floor, newton_decrement
 
 __all__ = ["fit_pair_terms", "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
 

@@ -1,8 +1,8 @@
 r"""A pigment fit that knows its noise: weighted by each patch's own noise, with the calibration's uncertainty.
 
-The rows of a swatch card (`diffwash.fit._swatch`) each come with the
+The rows of a swatch card (`diffwash.fit.photos._swatch`) each come with the
 covariance of their mean colour, estimated from their pixels
-(`diffwash.fit._noise`). The fit minimises
+(`diffwash.fit.photos._noise`). The fit minimises
 
 $$ \chi^2 = \sum_i e_i^T C_i^{-1} e_i + \sum_{\text{photos}} \Big\| \frac{\delta g}{\sigma_g} \Big\|^2
    + \Big\| \frac{\delta b}{\sigma_b} \Big\|^2 + \text{(a weak prior)}, \qquad
@@ -46,8 +46,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._lazy import lazy
-from ._kmfit import COMPILER_OPTIONS, FitModel, Rows, _compiled, effective, pad_rows, predict
+from ..._lazy import lazy
+from .._kmfit import COMPILER_OPTIONS, FitModel, Rows, _compiled, effective, pad_rows, predict
 
 scipy_stats = lazy("scipy.stats")
 

@@ -32,8 +32,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .. import colorimetry
-from ._bandlsq import GN_TOL, Convergence, _tangents, loss_floor
+from ... import colorimetry
+from .._bandlsq import GN_TOL, Convergence, _tangents, loss_floor
 
 __all__ = ["refine_in_de2000"]
 

@@ -14,7 +14,7 @@ Saunderson's surface correction of internal reflectance $k_2$).
   band by band coupled only by the shared terms (amount laws, weights, $k_2$),
   solved by `BandLevenbergMarquardt` (Schur complement over the bands); then
   (`MixModel.loss = "de2000"`, the default) refined on CIEDE2000 residuals with
-  a ridge towards those spectra (`diffwash.fit._seen`).
+  a ridge towards those spectra (`diffwash.fit.tables._seen`).
 - **RGB tables** (8-bit sRGB): the pigments are still spectral, on a 380-780 nm,
   10 nm grid, with $\log K(\lambda)$ and $\log S(\lambda)$ smooth (a basis of
   Gaussian bumps and a second-difference penalty): generic priors only. They are
@@ -47,11 +47,11 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array
 
-from .. import _regions, colorimetry, km, mixing, spectral
-from ..library import Library
-from ..measurements import Measurements
+from ... import _regions, colorimetry, km, mixing, spectral
+from ...library import Library
+from ...measurements import Measurements
 from . import _pairs, _posterior, _priors, _seen
-from ._bandlsq import GN_TOL, BandLevenbergMarquardt, Convergence, band_covariance, loss_floor, newton_decrement
+from .._bandlsq import GN_TOL, BandLevenbergMarquardt, Convergence, band_covariance, loss_floor, newton_decrement
 
 __all__ = ["MixModel", "MixtureFit", "fit_mixtures", "pair_folds", "pairs", "score_library", "residuals", "RGB_GRID"]
 
@@ -87,15 +87,15 @@ class MixModel:
     - `own`: each pigment's amount law applied to its own amount, `Kx = sum_i K_i t_i(a_i)`, instead of
       Duncan's concentrations at the layer's total amount (measured worse: docs/mixing.md; kept to reproduce it).
     - `loss`: what a spectral fit minimises in the end: `"de2000"` (the log-reflectance fit, then refined on
-      CIEDE2000 residuals with a ridge of weight `ridge` towards its spectra: `diffwash.fit._seen`) or
+      CIEDE2000 residuals with a ridge of weight `ridge` towards its spectra: `diffwash.fit.tables._seen`) or
       `"spectral"` (log reflectance only). RGB tables are always fitted in CIEDE2000.
     - `ridge`: the refinement's pull towards the spectral fit (CIEDE2000 units per unit log K or log S).
     - `pairs`: spectral tables: after the pigments, fit `diffwash.mixing.PairTerms` for every pair the table
-      measured mixed (`diffwash.fit._pairs`), used for those pairs only; other pairs keep Duncan's law.
+      measured mixed (`diffwash.fit.tables._pairs`), used for those pairs only; other pairs keep Duncan's law.
     - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter).
-    - `scatter_spread`, `gamma_spread`: the table's population priors (`diffwash.fit._priors`): how far a
+    - `scatter_spread`, `gamma_spread`: the table's population priors (`diffwash.fit.tables._priors`): how far a
       pigment's log S (per band) and log amount-law exponent may stray from the table's mean (0: no prior).
-    - `one_amount`: hold what the rows leave free (`diffwash.fit._priors.TablePriors`): the amount law of a
+    - `one_amount`: hold what the rows leave free (`diffwash.fit.tables._priors.TablePriors`): the amount law of a
       pigment whose layers all have one total amount at the prior exponent, and the scattering of a pigment
       measured alone at one amount over light grounds only near the table's population. Pigments measured at
       several amounts are not affected.
@@ -506,7 +506,7 @@ def fit_mixtures(
     - `max_steps`: Levenberg-Marquardt steps at most.
     - `rtol`: the solver's tolerance (default: 1e-4 in float32, 1e-7 in float64).
     - `posterior`: spectral tables fitted in CIEDE2000: keep the parameters' Laplace posterior and the model
-      error measured on the table (`diffwash.fit._posterior`), so that predictions carry `de2000_90`.
+      error measured on the table (`diffwash.fit.tables._posterior`), so that predictions carry `de2000_90`.
     - `progress`: called with the name of each stage as it begins (a fit of a large table takes minutes).
     - `observe`: `illuminant`, `observer`, `method` of the `diffwash.spectral.Observation`
       (spectral tables; RGB tables are seen as sRGB: D65, CIE 1931 2-degree).

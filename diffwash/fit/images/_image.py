@@ -77,18 +77,18 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .. import colorimetry
-from .._choices import IMAGE_LOSSES, SOLVERS
-from .._errors import DiffwashError
-from .._io import read_image, read_json
-from .._mixture import check_fittable
-from .. import look as wl
-from .. import shading
-from .._render import Surface, Visibility, _kernel_statics, _look_kernel, rasterize, surface, surface_thicknesses
-from .._scene import Scene, load_scene, parse_scene, save_scene
-from .._watercolour import LOOK_FRACTIONS, LOOK_PARAMETERS, look_parameter_check, shadow_triangles
-from ..pigments import Pigment
-from ..shading import Params
+from ... import colorimetry
+from ..._choices import IMAGE_LOSSES, SOLVERS
+from ..._errors import DiffwashError
+from ..._io import read_image, read_json
+from ..._mixture import check_fittable
+from ... import look as wl
+from ... import shading
+from ..._render import Surface, Visibility, _kernel_statics, _look_kernel, rasterize, surface, surface_thicknesses
+from ..._scene import Scene, load_scene, parse_scene, save_scene
+from ..._watercolour import LOOK_FRACTIONS, LOOK_PARAMETERS, look_parameter_check, shadow_triangles
+from ...pigments import Pigment
+from ...shading import Params
 
 __all__ = ["FITTABLE", "SOLVERS", "IMAGE_LOSSES", "ImageFit", "fit_image", "parse_fit_list", "load_cameras"]
 
@@ -708,7 +708,9 @@ def _state_loss(state: Any) -> Any:
 
 
 def _iterate(solver, y0, problem, max_steps: int, progress, gtol: float) -> tuple[Any, list[float], int, Any, Any]:
-    """Step the solver by hand so that each step's loss can be shown.
+    """Step the solver by hand, through its public `init`, `step` and `terminate`, so that each step's loss
+    can be shown and the stationarity test can end the fit: `optimistix.least_squares` and `minimise` offer
+    neither (docs/fitting.md, "Why the fit steps the solver itself").
 
     Converged when the solver's own test passes (optimistix's Cauchy test: a small step in both the
     parameters and the residuals, relative `rtol` plus absolute `atol`), or, after a rejected step, when

@@ -1,9 +1,9 @@
 r"""A spectral mixture fit's Laplace posterior and the model error it measures on its own table.
 
-**Posterior.** At the CIEDE2000 refinement's minimum (`diffwash.fit._seen`) the
+**Posterior.** At the CIEDE2000 refinement's minimum (`diffwash.fit.tables._seen`) the
 Gauss-Newton matrix $H = J^\top J + \lambda^2 I + J_p^\top J_p$ (the rows' colour
 residuals, the ridge that carries what the spectral stage learnt, the priors of
-`diffwash.fit._priors`) is the posterior precision in the residuals' noise scale
+`diffwash.fit.tables._priors`) is the posterior precision in the residuals' noise scale
 $\sigma^2$ (their mean square per CIELAB component, from the fit):
 $\Sigma = \sigma^2 H^{-1}$, marginalised onto $\theta = (\log K, \log S, \log\gamma)$
 and kept as its leading eigenvectors plus a diagonal (`diffwash._regions.Posterior`).
@@ -42,9 +42,9 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .. import _regions, colorimetry
+from ... import _regions, colorimetry
 from . import _seen
-from ._bandlsq import BandLevenbergMarquardt, gauss_newton_blocks
+from .._bandlsq import BandLevenbergMarquardt, gauss_newton_blocks
 
 __all__ = ["laplace", "refit_held_out", "calibrate_scale", "shrink_per_pigment", "owners", "scaled"]
 

@@ -61,7 +61,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._lazy import lazy
+from ..._lazy import lazy
 
 Image = lazy("PIL.Image")
 scipy_special = lazy("scipy.special")

@@ -4,7 +4,7 @@ A phone or camera makes its picture as: sensor signal -> white balance -> a
 colour matrix -> a tone curve (the same for every channel) -> encoding
 (JPEG). Reading a photo back to reflectance inverts that: a monotone curve
 `g` takes each channel's encoded value to a linear signal, the light falloff
-(`diffwash.fit._photo`) is divided out, and a colour correction `M` takes the
+(`diffwash.fit.photos._photo`) is divided out, and a colour correction `M` takes the
 three signals to linear sRGB reflectance:
 
 $$ \rho = M\big(g(e) / \ell(x, y)\big) . $$
@@ -44,8 +44,8 @@ import numpy as np
 from colour.characterisation import polynomial_expansion_Finlayson2015, polynomial_expansion_Vandermonde
 from scipy.optimize import nnls
 
-from .. import colorimetry
-from .._errors import DiffwashError
+from ... import colorimetry
+from ..._errors import DiffwashError
 
 __all__ = ["CameraModel", "fit_camera", "CORRECTIONS", "needed_references", "lab_to_linear", "spectrum_lab"]
 

@@ -38,18 +38,16 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from .. import colorimetry
-from .._errors import DiffwashError
-from .._io import check_float32, open_input
-from ..library import Library, library_from_pigments
-from ..measurements import max_table_rows, refuse_absurd_amounts, refuse_colliding_names, rgb_scale, too_many_rows
-from ..pigments import Pigment
-from ._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
-from ._kmfit import paired_start
+from ... import colorimetry
+from ..._errors import DiffwashError
+from ..._io import check_float32, open_input
+from ...library import Library, library_from_pigments
+from ...measurements import max_table_rows, refuse_absurd_amounts, refuse_colliding_names, rgb_scale, too_many_rows
+from ...pigments import Pigment
+from .._kmfit import PLAIN, FitModel, Rows, batch_mode, fit_rows, log_sd, pad_rows, predict_jit, single_ground_start, starts_for
+from .._kmfit import delta_e_displayed, paired_start
 
 __all__ = ["MeasurementTable", "TableFit", "read_table", "fit_table", "read_ntu_wpsm", "PLAIN", "COLUMNS"]
 
@@ -375,18 +373,6 @@ class TableFit:
         """Write the library file (`diffwash.library`, per sRGB channel; also a pigment file) with diagnostics:
         what `diffwash predict`, scenes and `fit-image` read."""
         self.library.save(path)
-
-
-def delta_e_displayed(pred_linear: Any, obs_linear: Any) -> np.ndarray:
-    """CIEDE2000 between two linear colours after clipping both into the sRGB cube."""
-    return np.asarray(_delta_e_displayed(np.asarray(pred_linear), np.asarray(obs_linear)), np.float64)
-
-
-@jax.jit
-def _delta_e_displayed(pred: Any, obs: Any) -> Any:
-    p = jnp.clip(colorimetry.srgb_encode(pred), 0, 1)
-    o = jnp.clip(colorimetry.srgb_encode(obs), 0, 1)
-    return colorimetry.delta_e_2000(colorimetry.srgb_to_lab(p), colorimetry.srgb_to_lab(o))
 
 
 def _pack(table: MeasurementTable, model: FitModel) -> tuple[Rows, dict[str, np.ndarray], list[np.ndarray]]:

@@ -1,8 +1,9 @@
 r"""Several pigments, alone and mixed, from photos of their swatch cards: one joint fit, one library.
 
 A card's layout may name each patch's paint (`"pigment": "P1+P4", "coats": "1+2"`;
-a glaze stack `"pigment": "P1/P4", "coats": "1/2"`: `diffwash.fit._photo`). Cards that together hold more than one pigment are
-measured exactly as a single pigment's (`diffwash.fit._swatch`: the same
+a glaze stack `"pigment": "P1/P4", "coats": "1/2"`: `diffwash.fit.photos._photo`). Cards that
+together hold more than one pigment are
+measured exactly as a single pigment's (`diffwash.fit.photos._swatch`: the same
 calibration from the paper, the same robust patch means, clipped channels as
 bounds), and every patch becomes a row of an RGB measurement table
 (`diffwash.measurements.Measurements`): its pigments, the coats of each, its
@@ -27,14 +28,14 @@ from typing import Any
 
 import numpy as np
 
-from .. import mixing
-from .._errors import DiffwashError
-from ..library import Library
-from ..measurements import Measurements
-from ._mixfit import MixModel, MixtureFit, fit_mixtures
+from ... import mixing
+from ..._errors import DiffwashError
+from ...library import Library
+from ...measurements import Measurements
+from ..tables import MixModel, MixtureFit, fit_mixtures
 from ._photo import GROUNDS, Calibration, _name_key, patch_paints
 from ._swatch import PatchResult, _bounds, _default_name, _measure_all, _Photo
-from ._table import delta_e_displayed
+from .._kmfit import delta_e_displayed
 
 __all__ = ["SwatchMixtureFit", "fit_swatch_mixtures"]
 

@@ -54,11 +54,11 @@ from typing import Any
 
 import numpy as np
 
-from .. import _regions
-from .._errors import DiffwashError
-from .._io import atomic_path
-from ..library import Library, _as_queries, load_library
-from ..measurements import Queries
+from ... import _regions
+from ..._errors import DiffwashError
+from ..._io import atomic_path
+from ...library import Library, _as_queries, load_library
+from ...measurements import Queries
 
 __all__ = ["Pick", "Suggestions", "suggest", "write_suggestions"]
 

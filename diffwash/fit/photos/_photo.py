@@ -58,11 +58,11 @@ from typing import Any
 import numpy as np
 from scipy.ndimage import binary_erosion
 
-from .. import colorimetry
-from .._errors import DiffwashError
-from .._io import check_float32, read_json
-from .._schema import LayoutFile, validate
-from ..shading import DEFAULT_PAPER
+from ... import colorimetry
+from ..._errors import DiffwashError
+from ..._io import check_float32, read_json
+from ..._schema import LayoutFile, validate
+from ...shading import DEFAULT_PAPER
 from ._camera import CameraModel, fit_camera, needed_references, spectrum_lab
 from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
 
@@ -591,7 +591,7 @@ class PatchStats:
     **Fields:** `rgb` (the mean linear reflectance, (3,): a trimmed mean, or
     near the noise floor the middle of `interval`), `cov` (its covariance,
     (3, 3): pixel noise, code-value quantisation, the noise floor; see
-    `diffwash.fit._noise`), `spread` (robust standard deviation of the pixels,
+    `diffwash.fit.photos._noise`), `spread` (robust standard deviation of the pixels,
     (3,)), `clipped_lo`, `clipped_hi` (fraction of the pixels clipped at the
     bottom / top, per channel), `pixels` (pixels used), `pixels_per_sample`
     (integrated autocorrelation, (3,)), `interval` ((2, 3): the range the mean
@@ -620,9 +620,9 @@ def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibra
                 floor_noise: float | None = None) -> PatchStats:  # fmt: skip
     """Statistics of the calibrated reflectance inside `box`, away from its edges, with the noise of their mean.
 
-    `jpeg`: the file's quantisation steps (`diffwash.fit._noise.jpeg_steps`), if it is a JPEG;
+    `jpeg`: the file's quantisation steps (`diffwash.fit.photos._noise.jpeg_steps`), if it is a JPEG;
     `reference`: the box is a reference every patch depends on; `floor_noise`: the camera's noise
-    at black (`diffwash.fit._noise.camera_noise_floor`), if known (see `diffwash.fit._noise.pixel_noise`).
+    at black (`diffwash.fit.photos._noise.camera_noise_floor`), if known (see `diffwash.fit.photos._noise.pixel_noise`).
     """
     ib = inner_box(box)
     ys, xs = np.mgrid[ib.y0 : ib.y1, ib.x0 : ib.x1]

@@ -229,7 +229,8 @@ WatercolourObject = pydantic.create_model(
 class _SceneKeys(_Part):
     """A scene file (`diffwash render`, `diffwash.load_scene`)."""
 
-    mesh: Name = Field(description="a triangle mesh, relative to the scene file; any format trimesh reads")
+    mesh: Name = Field(description="a triangle mesh, relative to the scene file; any format trimesh reads (PLY, OBJ, "
+                               "STL, GLB/glTF, OFF, ...); a file of several meshes is joined into one")
     image: Image = Field(default_factory=Image, description="`{width, height}` (below)")
     camera: Camera = Field(description="`{eye, target, up, fov_y, near, far}` (below)")
     light: Light = Field(description="`{direction}` (below)")

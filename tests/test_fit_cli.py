@@ -138,7 +138,7 @@ def bad_layout(tmp_path, layout, change):
     [
         (lambda L: L["patches"][1].update(box=[300, 200, 999, 300]), "bad.json: patches[1].box: [300, 200, 999, 300] lies outside the 216x264 photo"),
         (lambda L: L["patches"][0].update(box=[50, 50, 40, 80]), "bad.json: patches[0].box: is empty"),
-        (lambda L: L["patches"][0].update(ground="white"), "bad.json: patches[0].ground: unknown ground 'white'"),
+        (lambda L: L["patches"][0].update(ground="white"), "bad.json: patches[0].ground: must be one of paper, black, got 'white'"),
         (lambda L: L.pop("paper"), "bad.json: paper: missing key"),
         (lambda L: L["paper"].update(box="all"), "bad.json: paper.box: must be [x0, y0, x1, y1]"),
     ],
@@ -155,7 +155,7 @@ def test_fit_swatch_nan_in_layout(run_cli, tmp_path, card):
     text = json.dumps(card).replace('"coats": 2', '"coats": NaN', 1)
     (tmp_path / "nan.json").write_text(text)
     r = run_cli("fit-swatch", "card.png", "--layout", "nan.json", "-o", "out.json")
-    assert r.returncode == 2 and "nan.json: patches[2].coats: must be a number of coats > 0, got nan" in r.stderr
+    assert r.returncode == 2 and "nan.json: patches[2].coats: must be a number of coats > 0 ('+'-joined numbers for a mixture), got nan" in r.stderr
     assert leftovers(tmp_path, "out.json") == []
 
 

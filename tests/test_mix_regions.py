@@ -246,3 +246,36 @@ def test_a_paints_folds_run_as_far_as_the_fit_and_pair_folds_stay_capped(tmp_pat
     assert _posterior.PAINT_FOLD_STEPS >= 400 and _posterior.PAINT_FOLD_REFINE_STEPS >= 100
     assert steps.get("leave-pairs-out", {}) == {}
     assert rows["unmixed"] > 0 and scale["unmixed"] > 0
+
+
+def test_an_rgb_tables_fit_carries_regions_from_its_own_posterior_and_folds(tmp_path):
+    """Issue 20: a library fitted to an RGB table (three channels, no spectra) predicts with `de2000_90` as a
+    spectral one does: the Laplace covariance of its basis coefficients carried onto the bands, each pigment bounded
+    by its own rows, and model errors from its rows and leave-pairs-out folds. Before, it had no regions at all."""
+    from conftest import ROOT
+
+    from diffwash import colorimetry, measurements
+    from diffwash.fit import fit_mixtures
+    from diffwash.fit.tables import _mixfit
+
+    t = measurements.read_measurements(ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv")
+    m = t.select([set(p) <= {"P1", "P4", "P7"} for p in t.pigments])
+    fit = fit_mixtures(m)
+    unc = fit.library.fit["uncertainty"]
+    assert unc["noise_de2000"] > 0 and {"single", "seen", "unseen"} <= set(unc["model_error"])
+    assert "leave-pairs-out" in unc["unseen_from"] and [r["name"] for r in unc["pigments"]] == ["P1", "P4", "P7"]
+    post = fit.library.posterior
+    B = len(_mixfit.RGB_GRID)
+    assert post.factor.shape[0] == 2 * 3 * B + 3 and post.diagonal.shape == (2 * 3 * B + 3,)
+    pred = fit.library.predict(m.pigments, m.amounts, m.ground)
+    de = np.asarray(_dE(np.asarray(colorimetry.linear_srgb_to_lab(jnp.asarray(m.values))), pred.lab))
+    assert np.all(np.isfinite(pred.de2000_90)) and np.all(pred.de2000_90 > 0)
+    assert 0.8 <= np.mean(de <= pred.de2000_90) <= 1.0  # in-sample model errors: about 90% of its own rows
+    # ... and `diffwash predict` writes them, for a pair the table never mixed too (P1+P4 is one it did).
+    fit.library.save(tmp_path / "lib.json")
+    (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1,0.05,paper\nP1+P4,0.02+0.02,paper\n")
+    assert main(["predict", str(tmp_path / "lib.json"), "--table", str(tmp_path / "q.csv"),
+                 "-o", str(tmp_path / "p.csv")]) == 0  # fmt: skip
+    head, *rows = (line.split(",") for line in (tmp_path / "p.csv").read_text().splitlines())
+    col = head.index("de2000_90")
+    assert len(rows) == 2 and all(float(r[col]) > 0 for r in rows)

@@ -172,7 +172,7 @@ def fit_swatch_mixtures(
     # (K and S start and are regularised per coat), then stated in coats.
     scale = mixing.REFERENCE_AMOUNT
     scaled = replace(table, amounts=tuple(tuple(scale * a for a in row) for row in table.amounts))
-    fit = _per_coat(fit_mixtures(scaled, model=model, max_steps=max_steps, rtol=rtol), scale)
+    fit = _per_coat(fit_mixtures(scaled, model=model, max_steps=max_steps, rtol=rtol, posterior=False), scale)
     fitted = np.asarray(fit.library.predict(table).linear_srgb, np.float64)
     rgb, lo, hi = table.values, table.lo, table.hi
     # As the camera would have recorded the fit: a clipped channel shows its bound when the fit lies beyond it.

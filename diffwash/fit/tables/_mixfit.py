@@ -396,25 +396,41 @@ class _RGBResiduals(eqx.Module):
     P: int = eqx.field(static=True)
     model: MixModel = eqx.field(static=True)
     priors: _priors.TablePriors = eqx.field(static=True)
+    w: Array | None = None  # each row's weight (N,) on its colour residuals (a cross-validation fold's 0s); None: 1
 
-    def __call__(self, y, args):
+    def rgb(self, y, args):
+        """Every row's linear sRGB (N, 3) at `y` (`args`: the bands' sRGB matrix)."""
         P, model = self.P, self.model
         flat, shared = y
         coef = flat.reshape(2 * P, self.phi.shape[1])
         gam, w, k2 = _shared(shared, P, model)
         logks = coef @ self.phi.T  # (2P, B)
         K, S = jnp.exp(logks[:P]), jnp.exp(logks[P:])
-        rgb = _layer(K, S, self.A, self.G, gam, w, k2, model.own) @ args
+        return _layer(K, S, self.A, self.G, gam, w, k2, model.own) @ args
+
+    def __call__(self, y, args):
+        P = self.P
+        flat, shared = y
+        coef = flat.reshape(2 * P, self.phi.shape[1])
+        rgb = self.rgb(y, args)
         clamp = jax.lax.stop_gradient(rgb)
         target = jnp.where(self.hi, jnp.maximum(self.Y, clamp), jnp.where(self.lo, jnp.minimum(self.Y, clamp), self.Y))
         lab_p = colorimetry.xyz_to_lab(colorimetry.linear_srgb_to_xyz(rgb), self.white)
         lab_m = colorimetry.xyz_to_lab(colorimetry.linear_srgb_to_xyz(target), self.white)
-        r = colorimetry.delta_e_2000_residuals(lab_m, lab_p).ravel()
+        r = colorimetry.delta_e_2000_residuals(lab_m, lab_p)
+        r = (r if self.w is None else r * self.w[:, None]).ravel()
+        model = self.model
         # One "band" holding every coefficient: BandLevenbergMarquardt is then a dense LM by normal equations.
         ridge = RGB_RIDGE * model.prior * (coef - self.coef0).ravel()  # pins the directions three channels leave free
         D = np.diff(np.eye(self.phi.shape[1] - 1), n=2, axis=0)  # second differences of the bumps' coefficients
         per_band = jnp.concatenate([r, RGB_SMOOTH * model.prior * (coef[:, 1:] @ D.T).ravel(), ridge])[None]
         return per_band, _shared_prior(shared, P, model, self.priors)
+
+
+@eqx.filter_jit
+def _rgb_lab(fn: _RGBResiduals, y, args):
+    """Every row's CIELAB as the RGB fit `fn` predicts it at `y` (sRGB, D65)."""
+    return colorimetry.xyz_to_lab(colorimetry.linear_srgb_to_xyz(fn.rgb(y, args)), fn.white)
 
 
 def _fit_rgb(m: Measurements, names, model: MixModel, max_steps: int, rtol: float):
@@ -431,14 +447,27 @@ def _fit_rgb(m: Measurements, names, model: MixModel, max_steps: int, rtol: floa
     cast = lambda x: jnp.asarray(x, dtype)  # noqa: E731
     fn = _RGBResiduals(cast(A), cast(G), cast(m.values), jnp.asarray(m.lo), jnp.asarray(m.hi), cast(phi), coef0,
                        cast(colorimetry.WHITE_D65), P, model,
-                       dataclasses.replace(_priors.table_priors(A, G, model.one_amount), scatter_weak=()))  # fmt: skip
-    (flat, shared), ok, steps = _solve_in_chunks(fn, (coef0.reshape(1, -1), shared0), cast(obs.to_rgb), max_steps,
-                                                 rtol)  # fmt: skip
+                       dataclasses.replace(_priors.table_priors(A, G, model.one_amount), scatter_weak=()),
+                       jnp.ones(len(m), dtype))  # weights: as its folds', which then share its compiled solver  # fmt: skip
+    start, args = (coef0.reshape(1, -1), shared0), cast(obs.to_rgb)
+    (flat, shared), ok, steps = _solve_in_chunks(fn, start, args, max_steps, rtol)
     coef = flat.reshape(coef0.shape)
     gam, w, k2 = _shared(shared, P, model)
     logks = np.asarray(coef, np.float64) @ phi.T
     out = (np.exp(logks[:P]), np.exp(logks[P:]), np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2))
-    return (*out, ok, steps), grounds, obs
+    return (*out, ok, steps), grounds, obs, _RGBFit(fn, start, (flat, shared), args, max_steps, rtol)
+
+
+@dataclasses.dataclass(frozen=True)
+class _RGBFit:
+    """An RGB fit's problem, its start and solution, for its posterior (`_rgb_posterior`)."""
+
+    fn: _RGBResiduals
+    start: tuple
+    y: tuple
+    args: Array
+    max_steps: int
+    rtol: float
 
 
 @eqx.filter_jit
@@ -505,8 +534,9 @@ def fit_mixtures(
     - `model`: the `MixModel` terms (default: Duncan with a fitted amount law per pigment).
     - `max_steps`: Levenberg-Marquardt steps at most.
     - `rtol`: the solver's tolerance (default: 1e-4 in float32, 1e-7 in float64).
-    - `posterior`: spectral tables fitted in CIEDE2000: keep the parameters' Laplace posterior and the model
-      error measured on the table (`diffwash.fit.tables._posterior`), so that predictions carry `de2000_90`.
+    - `posterior`: keep the parameters' Laplace posterior and the model error measured on the table
+      (`diffwash.fit.tables._posterior`; an RGB table's: `_rgb_posterior`), so that predictions carry
+      `de2000_90` (spectral tables: when fitted in CIEDE2000, the default).
     - `progress`: called with the name of each stage as it begins (a fit of a large table takes minutes).
     - `observe`: `illuminant`, `observer`, `method` of the `diffwash.spectral.Observation`
       (spectral tables; RGB tables are seen as sRGB: D65, CIE 1931 2-degree).
@@ -524,7 +554,7 @@ def fit_mixtures(
         K, S, gam, w, k2, ok, steps = _fit_spectral(m, names, model, max_steps, rtol, obs, say)
         grounds = dict(m.grounds)
     else:
-        (K, S, gam, w, k2, ok, steps), grounds, obs = _fit_rgb(m, names, model, max_steps, rtol)
+        (K, S, gam, w, k2, ok, steps), grounds, obs, rgb_fit = _fit_rgb(m, names, model, max_steps, rtol)
     stages = [ok if isinstance(ok, Convergence) else Convergence(converged=bool(ok), steps=steps, stage="fit")]
     w = w / np.exp(np.mean(np.log(w)))  # the weights' common scale is free: geometric mean 1
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
@@ -552,6 +582,10 @@ def fit_mixtures(
     if posterior and m.spectral and model.loss == "de2000":
         say("posterior")
         post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib, say)
+        record["uncertainty"] = post.record
+    elif posterior and not m.spectral:
+        say("posterior")
+        post = _rgb_posterior(m, list(names), model, palette, k2, obs, lib, rgb_fit, say)
         record["uncertainty"] = post.record
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=record, posterior=post)
     return MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model, tuple(stages))
@@ -582,11 +616,30 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
         F, diag, sigma = band_covariance(spectral, (band, shared), len(m), theta, _posterior.RANK)
         F, diag = _theta_padded(F, diag, int(band.shape[0]), P)
     from_prior = _from_priors(priors, F, diag, sigma, int(band.shape[0]), P, model)
+    pb = _seen._Problem(reflect, obs.lab, jnp.asarray(measured_lab(m, obs), dtype), band, float(model.ridge),
+                        _SharedPrior(P, model, priors))  # fmt: skip
+    start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
+    refit = lambda folds, what, **steps: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
+                                                                   rtol=1e-7 if dtype == jnp.float64 else 1e-4,
+                                                                   progress=lambda i, n: say(f"{what} fold {i}/{n}"),
+                                                                   **steps)  # fmt: skip
+    return _regions_of(m, names, (F, diag, sigma), from_prior, palette, k2, obs, lib, (np.asarray(A), np.asarray(G)),
+                       refit, {"noise_log_reflectance": round(sigma, 6)})  # fmt: skip
+
+
+def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: float, obs, lib: Library, rows,
+                refit, record: dict) -> _regions.Posterior:  # fmt: skip
+    """A fit's `_regions.Posterior` from its Laplace covariance `laplace` = (factor, diagonal, sigma) over theta:
+    each pigment's block bounded by its own single rows (`_posterior.shrink_per_pigment`), and the model error of
+    each kind of row (`_model_errors`, its folds refitted by `refit`); `rows` = (A, G): the rows' layer amounts
+    (N, L, P) and grounds on the palette's bands (N, B)."""
+    F, diag, _ = laplace
+    P, B = len(names), int(np.asarray(palette.K).shape[1])
     lab_m = measured_lab(m, obs)
     pred = lib.predict(m.pigments, m.amounts, m.ground)
     kind = np.array(_regions.kinds(m.pigments, pairs(m)))
-    An, Gn = np.asarray(A), np.asarray(G)
-    owner = _posterior.owners(P, int(band.shape[0]))
+    An, Gn = rows
+    owner = _posterior.owners(P, B)
 
     def draw(a, sel=slice(None)):
         return _regions.lab_draws(_regions.Posterior(*_posterior.scaled(F, diag, a, owner), {}), palette, An[sel],
@@ -597,20 +650,76 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     row_pigment = np.array([index[p[0]] for p, k in zip(m.pigments, kind) if k == "single"], int)
     a = _posterior.shrink_per_pigment(lambda a: draw(a, one), row_pigment, P, lab_m[one], pred.lab[one])
     F, diag = _posterior.scaled(F, diag, a, owner)
-    pb = _seen._Problem(reflect, obs.lab, jnp.asarray(lab_m, dtype), band, float(model.ridge),
-                        _SharedPrior(P, model, priors))  # fmt: skip
-    start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
-    refit = lambda folds, what, **steps: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
-                                                                   rtol=1e-7 if dtype == jnp.float64 else 1e-4,
-                                                                   progress=lambda i, n: say(f"{what} fold {i}/{n}"),
-                                                                   **steps)  # fmt: skip
-    scale, rows, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit)
-    record = {"noise_log_reflectance": round(sigma, 6),
-              "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
-              "model_error": {k: round(v, 4) for k, v in scale.items()}, "rows": rows, **how,
-              "pigments": _mark_priors(_posterior.pigment_report(F, diag, names, int(band.shape[0]),
-                                                                 {n for p in pairs(m) for n in p}), from_prior)}  # fmt: skip
+    scale, counts, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit)
+    record = {**record, "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
+              "model_error": {k: round(v, 4) for k, v in scale.items()}, "rows": counts, **how,
+              "pigments": _mark_priors(_posterior.pigment_report(F, diag, names, B, {n for p in pairs(m) for n in p}),
+                                       from_prior)}  # fmt: skip
     return _regions.Posterior(F, diag, scale, tuple(pairs(m)), record)
+
+
+def _rgb_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library, fit: "_RGBFit",
+                   say: Callable[[str], None] = lambda msg: None) -> _regions.Posterior:  # fmt: skip
+    """An RGB fit's `_regions.Posterior`, as a spectral fit's (`_regions_of`): the Laplace covariance of its basis
+    coefficients and amount laws (`_rgb_laplace`) carried onto the bands, and its folds refitted from the fit's own
+    start to the fit's own test (an RGB fit is quick)."""
+    P = len(names)
+    F, diag, sigma = _rgb_laplace(fit, len(m), P, model.gamma)
+    from_prior = _from_priors(fit.fn.priors, F, diag, sigma, int(np.asarray(palette.K).shape[1]), P, model)
+
+    def refit(folds, what, **steps):
+        out = []
+        for i, test in enumerate(folds):
+            say(f"{what} fold {i + 1}/{len(folds)}")
+            w = jnp.asarray(~np.asarray(test), fit.fn.Y.dtype)
+            fold = eqx.tree_at(lambda f: f.w, fit.fn, w)
+            y, _, _ = _solve_in_chunks(fold, fit.start, fit.args, fit.max_steps, fit.rtol, judge=False)
+            out.append(np.asarray(_rgb_lab(fit.fn, y, fit.args), np.float64)[np.asarray(test)])
+        return out
+
+    return _regions_of(m, names, (F, diag, sigma), from_prior, palette, k2, obs, lib,
+                       (np.asarray(fit.fn.A), np.asarray(fit.fn.G)), refit, {"noise_de2000": round(sigma, 6)})  # fmt: skip
+
+
+@eqx.filter_jit
+def _rgb_jacobian(fn: "_RGBResiduals", v, n_flat: int, shape, args):
+    def res(v):
+        per_band, prior = fn((v[:n_flat].reshape(shape), v[n_flat:]), args)
+        return jnp.concatenate([per_band.ravel(), prior.ravel()])
+
+    return res(v), jax.jacfwd(res)(v)
+
+
+def _rgb_laplace(fit: "_RGBFit", n_rows: int, P: int, gamma: bool, rank: int = _posterior.RANK):
+    r"""The Laplace posterior of an RGB fit over theta = (log K, log S per band of `RGB_GRID`, log gamma):
+    `(factor, diagonal, sigma)` as `_posterior.laplace` gives a spectral fit's. The fit's parameters are basis
+    coefficients $c$ (log K and log S $= \Phi c$ per pigment) and the shared terms; $\Sigma_c = \sigma^2 H^{-1}$ at
+    the fit (H the Gauss-Newton matrix of every residual: the rows' CIEDE2000 components, the smoothness and ridge
+    priors, the shared terms' prior; $\sigma$ 1.4826 times the rows' median absolute component), marginalised onto
+    $c$ and log gamma and carried onto the bands, $\Sigma_	heta = M \Sigma_c M^	op$, $M$ = diag($\Phi$ per
+    pigment and quantity, identity on log gamma). Without a fitted amount law the log gamma block is 0."""
+    flat, shared = fit.y
+    phi = np.asarray(fit.fn.phi, np.float64)
+    n_flat = int(flat.size)
+    v = jnp.concatenate([flat.ravel(), shared])
+    r, J = (np.asarray(x, np.float64) for x in _rgb_jacobian(fit.fn, v, n_flat, flat.shape, fit.args))
+    sigma2 = float((1.4826 * np.median(np.abs(r[: 3 * n_rows]))) ** 2)
+    lam, V = np.linalg.eigh(J.T @ J)
+    lam = np.maximum(lam, 1e-9 * max(lam.max(), 1e-30))
+    idx = np.concatenate([np.arange(n_flat), n_flat + np.arange(P) if gamma else np.zeros(0, int)])
+    Vt = V[idx]
+    cov = sigma2 * (Vt / lam) @ Vt.T  # over (c, log gamma)
+    B = phi.shape[0]
+    M = np.zeros((2 * P * B + P, len(idx)))
+    M[: 2 * P * B, :n_flat] = np.kron(np.eye(2 * P), phi)
+    if gamma:
+        M[2 * P * B :, n_flat:] = np.eye(P)
+    full = M @ cov @ M.T
+    ev, U = np.linalg.eigh(full)
+    top = np.argsort(ev)[::-1][:rank]
+    F = U[:, top] * np.sqrt(np.maximum(ev[top], 0))
+    diag = np.maximum(np.diag(full) - np.sum(F * F, axis=1), 0.0)
+    return F, diag, float(np.sqrt(sigma2))
 
 
 def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):

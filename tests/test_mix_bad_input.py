@@ -290,3 +290,28 @@ def test_a_thick_layer_at_a_huge_amount_is_its_masstone(cli, tmp_path, amount):
     rows = [line.split(",") for line in (tmp_path / "p.csv").read_text().splitlines()[1:]]
     for row in rows:
         np.testing.assert_allclose(np.asarray(row[-4:], float), masstone, rtol=1e-5)
+
+
+def test_a_fit_that_one_row_steers_names_that_row(run_cli, tmp_path):
+    """Issue 23: one absurd row can ruin a fit that says "converged"; the fit names a row that holds more than a
+    quarter of its loss (here a P1 + P4 mixture written as white), and the record keeps it."""
+    lines = (ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv").read_text().splitlines()
+    keep = [lines[0], lines[1]] + [x for x in lines[2:] if x.split(",")[0] in ("P1", "P4", "P1+P4")]
+    bad = next(i for i, x in enumerate(keep) if x.startswith("P1+P4,"))
+    keep[bad] = ",".join(keep[bad].split(",")[:3] + ["255", "255", "255"])
+    (tmp_path / "t.csv").write_text("\n".join(keep) + "\n")
+    r = run_cli("fit-swatch", "--table", "t.csv", "-o", "lib.json")
+    assert r.returncode == 0, r.stderr
+    assert f"line {bad + 1} (P1+P4 at " in r.stdout and "of the fit's loss: one row steers the fit" in r.stdout
+    record = json.loads((tmp_path / "lib.json").read_text())["fit"]
+    assert [d["line"] for d in record["dominant_rows"]] == [bad + 1] and record["dominant_rows"][0]["share"] > 0.25
+
+
+def test_only_a_row_holding_over_a_quarter_of_the_loss_is_named():
+    from diffwash.fit.tables._mixfit import dominant_rows
+
+    rows = [{"line": i + 2} for i in range(10)]
+    assert dominant_rows(np.full(10, 3.0), rows) == []  # ten rows alike: a tenth each
+    got = dominant_rows(np.r_[np.full(9, 1.0), 4.0], rows)  # 16 / 25 of the loss
+    assert [r["line"] for r in got] == [11] and got[0]["share"] == pytest.approx(0.64)
+    assert dominant_rows(np.array([5.0, 0.0, 0.0]), rows[:3]) == []  # too few rows to say

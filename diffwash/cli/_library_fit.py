@@ -67,6 +67,10 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
           f"model: {', '.join(f'{k}={v}' for k, v in model.describe().items())}")  # fmt: skip
     print(f"  mean CIEDE2000 {s['mean_de2000']:.2f} (median {s['median_de2000']:.2f}, 95th percentile "
           f"{s['p95_de2000']:.2f}, max {s['max_de2000']:.2f}); {100 * s['share_de_ab_5']:.1f}% within dE*ab 5")
+    for r in (fit.library.fit or {}).get("dominant_rows", []):
+        print(f"  line {r['line']} ({r['pigment']} at {r['amount']} on {r['ground']}, CIEDE2000 {r['de2000']:.1f}) holds "
+              f"{100 * r['share']:.0f}% of the fit's loss: one row steers the fit; check it (a typo, a mislabelled "
+              "sample)")  # fmt: skip
     status = "converged" if fit.converged else "did not converge"
     print(f"  Levenberg-Marquardt {status} in {fit.iterations} steps")
     for c in fit.convergence:

@@ -572,9 +572,10 @@ def fit_mixtures(
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2)
     de, de_ab = residuals(lib, m)
     fit = MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model)
+    rows = _row_record(m, de, de_ab)
     record = {"model": model.describe(), "table": m.path, "converged": ok, "iterations": steps,
-              "convergence": [c.to_dict() for c in stages], "summary": fit.summary(),
-              "rows": _row_record(m, de, de_ab)}  # fmt: skip
+              "convergence": [c.to_dict() for c in stages], "summary": fit.summary(), "rows": rows,
+              "dominant_rows": dominant_rows(de, rows)}  # fmt: skip
     if model.one_amount:
         priors = _priors.table_priors(*_dense(m, list(names)))
         record["priors"] = priors.describe(list(names), spectral=m.spectral, gamma=model.gamma)
@@ -820,6 +821,22 @@ def residuals(lib: Library, m: Measurements) -> tuple[np.ndarray, np.ndarray]:
     lab_p = pred.lab if m.spectral else np.asarray(colorimetry.linear_srgb_to_lab(jnp.asarray(pred.linear_srgb)))
     de = np.asarray(colorimetry.delta_e_2000(jnp.asarray(lab_m), jnp.asarray(lab_p)), np.float64)
     return de, np.linalg.norm(lab_m - lab_p, axis=1)
+
+
+#: A row holding more than this share of a fit's summed squared CIEDE2000 is reported (`dominant_rows`): one row
+#: then steers the fit (a typo, a mislabelled patch), however well the fit says it converged.
+DOMINANT_SHARE = 0.25
+
+
+def dominant_rows(de: np.ndarray, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows (`_row_record`'s, with their `"share"` of the loss) that hold more than `DOMINANT_SHARE` of the
+    summed squared CIEDE2000 of a fit of at least 4 rows, worst first."""
+    de = np.asarray(de, np.float64)
+    total = float(np.sum(de * de))
+    if len(de) < 4 or total <= 0:
+        return []
+    share = de * de / total
+    return [{**rows[i], "share": round(float(share[i]), 4)} for i in np.argsort(-share) if share[i] > DOMINANT_SHARE]
 
 
 def _row_record(m: Measurements, de: np.ndarray, de_ab: np.ndarray) -> list[dict[str, Any]]:

@@ -4,7 +4,6 @@ the file, the line and the column, exit status 2, nothing written (through the C
 import json
 
 import numpy as np
-
 import pytest
 from conftest import ROOT
 

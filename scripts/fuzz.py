@@ -16,6 +16,10 @@ It prints one row per reader (inputs, crashes, hangs, seconds) and exits with
 status 1 if anything crashed or hung. `tests/test_fuzz.py` runs a few hundred
 inputs per reader in CI.
 
+Generated JSON documents come from hand-written generators (which know what a valid file looks like) and from
+the formats' own pydantic declarations (`declared_docs`: every declared key, its type, bounds and length, values at
+and past the edges), then mutated.
+
 Readers (their public functions): scenes (`diffwash.load_scene`), swatch-card
 layouts (`diffwash.fit.read_layout`), pigment files (`diffwash.pigments.load`),
 pigment libraries (`diffwash.pigments.library`), mixable libraries (`diffwash.library.load_library`, then a
@@ -172,6 +176,99 @@ def json_file(base: st.SearchStrategy[Any]) -> st.SearchStrategy[bytes]:
     deep = st.integers(100, 200_000).map(lambda n: b"[" * n + b"]" * n)
     odd = st.sampled_from([b"9" * 5000, b"1e400", b"-1e400", b"NaN", b'"\\ud800"', b"\xff\xfe{}", b"{}" * 3, b""])
     return st.one_of(documents, documents, documents, documents, st.binary(max_size=64), deep, odd)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Documents drawn from the formats' own declarations (diffwash._schema, diffwash._scene_schema): each field's type,
+# bounds and length as declared (cross-field rules, such as a box's x0 < x1, only by chance). Mutated like the
+# others (values past the edges, wrong types, keys dropped or added), they reach every key a format has, including
+# keys a hand-written generator below forgets.
+
+
+def _bounds_of(metadata: list) -> dict:
+    out = {}
+    for m in metadata:
+        for k in ("gt", "ge", "lt", "le", "min_length", "max_length"):
+            v = getattr(m, k, None)
+            if v is not None:
+                out[k] = v
+        out.update(_bounds_of(getattr(m, "metadata", []) or []))
+    return out
+
+
+def _from_type(t: Any, metadata: list, depth: int = 0) -> st.SearchStrategy[Any]:
+    """A strategy for values of the annotation `t` (with pydantic `metadata`: bounds, lengths)."""
+    import types
+    import typing
+
+    import pydantic
+
+    metadata = list(metadata)
+    while typing.get_origin(t) is typing.Annotated:
+        t, *more = typing.get_args(t)
+        metadata += more
+    b = _bounds_of(metadata)
+    origin = typing.get_origin(t)
+    if origin in (typing.Union, types.UnionType):
+        return st.one_of([_from_type(a, [], depth + 1) for a in typing.get_args(t)])
+    if origin is typing.Literal:
+        return st.sampled_from(typing.get_args(t))
+    if origin in (list, tuple):
+        args = typing.get_args(t)
+        if origin is tuple and args and args[-1] is not Ellipsis:
+            return st.tuples(*[_from_type(a, [], depth + 1) for a in args]).map(list)
+        lo = b.get("min_length", 0)
+        hi = b.get("max_length", lo + 4 if depth < 3 else lo)
+        return st.lists(_from_type(args[0] if args else Any, [], depth + 1), min_size=lo, max_size=max(lo, min(hi, lo + 6)))
+    if origin is dict:
+        lo = b.get("min_length", 0)
+        return st.dictionaries(st.sampled_from(("paper", "P1", "P4", "cream") + _NAMES),
+                               _from_type(typing.get_args(t)[1], [], depth + 1), min_size=lo, max_size=lo + 2)  # fmt: skip
+    if isinstance(t, type) and issubclass(t, pydantic.BaseModel):
+        return _from_model(t, depth + 1)
+    if t is bool:
+        return st.booleans()
+    if t is int:
+        lo, hi = b.get("ge", b.get("gt", -1) + 1), b.get("le", b.get("lt", 2**32) - 1)
+        return st.integers(lo, min(hi, lo + 1000))
+    if t is float:  # inside the declared range (the mutations take values past it); whole numbers as often
+        lo = b.get("ge", b.get("gt", -1e3))
+        hi = b.get("le", b.get("lt", max(lo, 0) + 1e3))
+        inside = st.floats(float(lo), float(hi), exclude_min="gt" in b, exclude_max="lt" in b)
+        whole = range(math.floor(lo) + 1, math.ceil(hi))
+        return st.one_of(inside, st.integers(whole.start, whole.stop - 1)) if len(whole) else inside
+    if t is str:
+        return st.one_of(st.sampled_from(_NAMES + _PIGMENT_REFS + ("paper", "black", "P1", "P1+P4", "D65")),
+                         st.text(max_size=10))  # fmt: skip
+    return json_values
+
+
+def _from_model(model: Any, depth: int = 0) -> st.SearchStrategy[dict]:
+    """Objects of a pydantic model: its required keys always, each optional key now and then."""
+
+    @st.composite
+    def draw_doc(draw: Any) -> dict:
+        doc = {}
+        for name, f in model.model_fields.items():
+            key = f.alias or name
+            if f.is_required() or draw(st.integers(0, 2)) == 0:
+                doc[key] = draw(_from_type(f.annotation, f.metadata, depth))
+        return doc
+
+    return draw_doc()
+
+
+def declared_docs(model_path: str) -> st.SearchStrategy[dict]:
+    """Documents of the format declared as `model_path` (`module:Model` in diffwash)."""
+    import importlib
+
+    module, name = model_path.split(":")
+    return st.deferred(lambda: _from_model(getattr(importlib.import_module(f"diffwash.{module}"), name)))
+
+
+def _with_mesh(doc: dict) -> dict:
+    """A declared scene document naming the fuzzing folder's mesh (the reader then gets past the mesh)."""
+    return {**doc, "mesh": "tetra.ply"} if isinstance(doc, dict) and doc.get("mesh") != "garbage.obj" else doc
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -548,14 +645,18 @@ def _load_pigment(path: Path, name: Any) -> Any:
 READERS: dict[str, Reader] = {
     r.name: r
     for r in (
-        Reader("scene", json_file(scene_docs()), lambda p, o: diffwash.load_scene(p), ".json"),
-        Reader("layout", json_file(layout_docs()), lambda p, size: diffwash.fit.read_layout(p, size=size), ".json",
+        Reader("scene", json_file(st.one_of(scene_docs(), scene_docs(),
+                                            declared_docs("_scene_schema:SceneFile").map(_with_mesh))),
+               lambda p, o: diffwash.load_scene(p), ".json"),  # fmt: skip
+        Reader("layout", json_file(st.one_of(layout_docs(), declared_docs("_schema:LayoutFile"))),
+               lambda p, size: diffwash.fit.read_layout(p, size=size), ".json",
                st.sampled_from([None, (64, 48), (1, 1)])),  # fmt: skip
-        Reader("pigment", json_file(st.one_of(pigment_docs(), library_docs)), _load_pigment, ".json",
-               st.sampled_from([None, "Rose", "cadmium red"])),  # fmt: skip
-        Reader("library", json_file(library_docs), lambda p, o: diffwash.pigments.library(p), ".json"),
-        Reader("mixable", json_file(mixable_library_docs()), _load_mixable, ".json",
-               st.sampled_from([0.0, 1e-30, 0.05, 1.0, 1e30, 3e38])),  # fmt: skip
+        Reader("pigment", json_file(st.one_of(pigment_docs(), library_docs, declared_docs("_schema:PigmentRecord"))),
+               _load_pigment, ".json", st.sampled_from([None, "Rose", "cadmium red"])),  # fmt: skip
+        Reader("library", json_file(st.one_of(library_docs, declared_docs("_schema:PigmentFile"))),
+               lambda p, o: diffwash.pigments.library(p), ".json"),  # fmt: skip
+        Reader("mixable", json_file(st.one_of(mixable_library_docs(), declared_docs("_schema:LibraryFile"))),
+               _load_mixable, ".json", st.sampled_from([0.0, 1e-30, 0.05, 1.0, 1e30, 3e38])),  # fmt: skip
         Reader("table", table_files(), lambda p, linear: diffwash.fit.read_table(p, linear=linear), ".csv",
                st.booleans()),  # fmt: skip
         Reader("measurements", mixture_table_files(),

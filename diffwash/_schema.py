@@ -534,8 +534,17 @@ class LayoutFile(_Part):
 
 # --- measurement and query tables (diffwash.measurements) ----------------------------------------------------------
 
+def plain_number_text(v: Any) -> Any:
+    """`v`, unless it is text that Python's float() reads but a table's reader should not: digits grouped by
+    `_` (`1_0` is not 10 in a CSV file, and no other program reads it so)."""
+    if isinstance(v, str) and "_" in v:
+        raise ValueError(f"not a number: {v.strip()!r}")
+    return v
+
+
 #: A table's number: CSV text such as `0.12` or `1e-3`, finite in float32.
-TableNumber = Annotated[float, pydantic.AllowInfNan(False), AfterValidator(_float32)]
+TableNumber = Annotated[float, pydantic.BeforeValidator(plain_number_text), pydantic.AllowInfNan(False),
+                        AfterValidator(_float32)]
 
 
 class QueryRow(_Part):

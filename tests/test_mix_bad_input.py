@@ -56,6 +56,20 @@ def test_bad_tables_are_refused_and_nothing_is_written(cli, tmp_path, body, need
     assert not (tmp_path / "lib.json").exists()
 
 
+@pytest.mark.parametrize(
+    "text, needles",
+    [
+        (HEAD.replace(",500,", ",400,") + PAPER, ("line 1", "header", "'400' appears twice")),
+        (HEAD.replace("ground", "pigment") + PAPER, ("line 1", "'pigment' appears twice")),
+        (HEAD + PAPER.replace("0.82", "0_82"), ("line 2", "500", "not a number: '0_82'")),
+    ],
+)  # fmt: skip
+def test_duplicate_columns_and_grouped_digits_are_refused(cli, tmp_path, text, needles):
+    (tmp_path / "t.csv").write_text(text + "P1,0.02,paper,0.2,0.1,0.5,0.6\n")
+    _refused(cli("fit-swatch", "--table", "t.csv", "-o", "lib.json"), "t.csv", *needles)
+    assert not (tmp_path / "lib.json").exists()
+
+
 def test_reflectance_a_little_above_one_is_data(cli, tmp_path):
     from diffwash import measurements
 
@@ -80,6 +94,8 @@ def _library(tmp_path, wavelengths=(400, 500, 600, 700)):
         ("pigment,amount,ground\nP1+P1,0.01,paper\n", ("q.csv", "line 2", "amount")),
         ("pigment,amount,ground\nP1,0.01,board\n", ("q.csv", "line 2", "ground", "board")),
         ("pigment,amount\nP1,0.01\n", ("q.csv", "ground")),
+        ("pigment,amount,amount,ground\nP1,0.01,0.02,paper\n", ("q.csv", "line 1", "'amount' appears twice")),
+        ("pigment,amount,ground\nP1,1_0,paper\n", ("q.csv", "line 2", "amount", "not a number: '1_0'")),
     ],
 )  # fmt: skip
 def test_bad_queries_are_refused(cli, tmp_path, queries, needles):

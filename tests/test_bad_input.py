@@ -587,6 +587,13 @@ def test_a_negative_seed_is_blamed_on_the_seed(cli, tmp_path):
     assert not (tmp_path / "card.png").exists()
 
 
+@pytest.mark.parametrize("args", [["Cadmium Red"], ["--library", str(ROOT / "data" / "libraries" / "ntu-four.json"),
+                                                    "--patches", "P1:1"]])  # fmt: skip
+def test_a_seed_past_32_bits_is_refused_as_in_scenes(cli, tmp_path, args):
+    refused(cli("swatch-card", *args, "--seed", str(2**32), "-o", "card.png"), "--seed", "< 2^32")
+    assert not (tmp_path / "card.png").exists()
+
+
 @pytest.mark.parametrize("look, needles", [
     ({"strokes": {"length": 1e30}}, ("watercolour.strokes.length", "at most 10 times the mesh's size", "1e+30")),
     ({"paper": {"image": "notes.png"}}, ("watercolour.paper.image", "notes.png", "is not an image diffwash reads")),

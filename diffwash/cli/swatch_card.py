@@ -42,8 +42,8 @@ def run(args) -> int:
     out = Path(args.output)
     dio.image_format_for(out, bits=args.bits, field="--output")
     layout = Path(args.layout) if args.layout else out.with_suffix(".json")
-    if args.seed < 0:
-        raise DiffwashError(f"must be a whole number >= 0, got {args.seed}", field="--seed")
+    if not 0 <= args.seed < 2**32:  # as a scene's seeds: what every random generator diffwash uses takes
+        raise DiffwashError(f"must be a whole number >= 0 and < 2^32, got {args.seed}", field="--seed")
     if args.amount_per_coat is not None:
         dio.check_float32(args.amount_per_coat, field="--amount-per-coat")
     if args.library is not None or args.patches is not None:

@@ -105,6 +105,57 @@ def test_bad_queries_are_refused(cli, tmp_path, queries, needles):
     assert not (tmp_path / "p.csv").exists()
 
 
+def _pairs(path, change):
+    lib = json.loads((ROOT / "data" / "libraries" / "ntu-four.json").read_text())
+    change(lib["pair_terms"])
+    path.write_text(json.dumps(lib))
+
+
+def _set(key, value, pair=1):
+    def change(t):
+        (t["pairs"][pair] if pair is not None else t["basis"])[key] = value
+
+    return change
+
+
+@pytest.mark.parametrize(
+    "change, needles",
+    [
+        (lambda t: t["pairs"][1]["pigments"].__setitem__(0, ["P1"]), ("pairs[1].pigments[0]", "must be text")),
+        (lambda t: t["pairs"][1]["pigments"].__setitem__(0, {}), ("pairs[1].pigments[0]", "must be text")),
+        (lambda t: t["pairs"][1]["K_bumps"].__setitem__(0, [1]), ("pairs[1].K_bumps[0]", "must be a number")),
+        (lambda t: t["pairs"][1]["S_bumps"].__setitem__(0, [1]), ("pairs[1].S_bumps[0]", "must be a number")),
+        (lambda t: t["pairs"][1]["K_bumps"].__setitem__(0, 1e30), ("pairs[1].K_bumps[0]", "<= 10")),
+        (lambda t: t["pairs"][1]["K_bumps"].__setitem__(0, 1e39), ("pairs[1].K_bumps[0]", "float32")),
+        (_set("S_amount", 1e30), ("pairs[1].S_amount", "<= 2")),
+        (_set("K_amount", True), ("pairs[1].K_amount", "number")),
+        (_set("K_bumps", [1, 2]), ("pairs[1].K_bumps", "4 numbers")),
+        (_set("width", 0, pair=None), ("pair_terms.basis.width", "> 0")),
+        (_set("centres", "380", pair=None), ("pair_terms.basis.centres",)),
+        (_set("shape", "round", pair=None), ("pair_terms.basis", "shape")),
+    ],
+)  # fmt: skip
+def test_bad_pair_terms_are_refused_naming_the_key(cli, tmp_path, change, needles):
+    """pair_terms was read by hand: a list where a name or a bump belongs crashed predict, and a bump of 1e30
+    predicted black. It is declared now (`_schema.PairTerms`)."""
+    _pairs(tmp_path / "lib.json", change)
+    (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1+P4,0.01+0.02,paper\n")
+    _refused(cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv"), "lib.json", *needles)
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_pair_terms_that_add_up_past_float32_still_predict_finite_colours(cli, tmp_path):
+    def change(t):
+        t["basis"] = {"centres": [380.0] * 4, "width": 1e30}
+        t["pairs"][1].update(K_bumps=[10.0] * 4, K_amount=2.0)
+
+    _pairs(tmp_path / "lib.json", change)
+    (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1+P4,1e30+1e30,paper\nP1+P4,0.01+0.02,paper\n")
+    status, err = cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv")
+    assert status == 0 and err == "", err
+    assert "nan" not in (tmp_path / "p.csv").read_text().lower()
+
+
 def test_a_library_on_a_grid_no_observer_sees_is_refused(cli, tmp_path):
     _library(tmp_path, wavelengths=(900, 950, 1000))
     (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1,0.01,paper\n")

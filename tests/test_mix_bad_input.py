@@ -357,3 +357,17 @@ def test_a_thick_layer_at_a_huge_amount_is_its_masstone(cli, tmp_path, amount):
     rows = [line.split(",") for line in (tmp_path / "p.csv").read_text().splitlines()[1:]]
     for row in rows:
         np.testing.assert_allclose(np.asarray(row[-4:], float), masstone, rtol=1e-5)
+
+
+@pytest.mark.parametrize("patches, unknown", [("P1/P4:1/1", None), ("P1+P4/P8:1+1/2", None), ("P1/P9:1/1", "P9"),
+                                              ("P9+P1/P4:1+1/1", "P9")])  # fmt: skip
+def test_a_cards_glaze_stacks_are_checked_layer_by_layer(cli, tmp_path, patches, unknown):
+    """The names of a stack were looked up whole ('P1/P4 not in the library'): the help's own example failed."""
+    lib = ROOT / "data" / "libraries" / "ntu-four.json"
+    result = cli("swatch-card", "--library", lib, "--patches", patches, "--ideal", "-o", "card.png")
+    if unknown is None:
+        assert result[0] == 0, result[1]
+        assert {p["pigment"] for p in json.loads((tmp_path / "card.json").read_text())["patches"]} == {patches.split(":")[0]}
+    else:
+        _refused(result, "--patches", f"{unknown} not in the library")
+        assert not (tmp_path / "card.png").exists()

@@ -9,6 +9,7 @@ or mixed in one layer (diffwash.swatchcard.make_mixture_card): a card fit-swatch
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import diffwash
@@ -83,7 +84,7 @@ def _mixture_card(args, out: Path, layout: Path) -> int:
     patches = parse_patches(args.patches)
     lib = diffwash.library.load_library(args.library)
     known = {n.lower() for n in lib.names}
-    unknown = sorted({n for names, _ in patches for n in names.split("+") if n.lower() not in known})
+    unknown = sorted({n for names, _ in patches for n in re.split(r"[+/]", names) if n.lower() not in known})
     if unknown:
         raise DiffwashError(f"{', '.join(unknown)} not in the library (it has {', '.join(lib.names)})", field="--patches")
     effects = diffwash.swatchcard.IDEAL if args.ideal else diffwash.swatchcard.CameraEffects()

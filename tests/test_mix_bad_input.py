@@ -371,3 +371,17 @@ def test_a_cards_glaze_stacks_are_checked_layer_by_layer(cli, tmp_path, patches,
     else:
         _refused(result, "--patches", f"{unknown} not in the library")
         assert not (tmp_path / "card.png").exists()
+
+
+def test_a_mixture_glaze_with_a_null_amount_takes_the_librarys_reference(cli, tmp_path):
+    """`"amount": null` is declared (LibraryGlaze: a positive number or null, the default) but crashed the scene's
+    reader with a TypeError."""
+    scene = json.loads((ROOT / "data" / "scenes" / "mixture.json").read_text())
+    scene.update(mesh=str(ROOT / "data" / "meshes" / "sphere.ply"), image={"width": 16, "height": 16})
+    for key in ("wash", "unlit"):
+        scene[key]["library"] = str(ROOT / "data" / "libraries" / "ntu-four.json")
+    scene["wash"]["amount"] = None
+    (tmp_path / "s.json").write_text(json.dumps(scene))
+    status, err = cli("render", "s.json", "-o", "r.png")
+    assert status == 0 and err == "", err
+    assert (tmp_path / "r.png").exists()

@@ -244,7 +244,7 @@ def _library_glaze(spec: dict, key: str, file: Any, base: Path, cache: dict) -> 
             close = difflib.get_close_matches(n, list(lib.names), n=1)
             hint = f"; did you mean {close[0]!r}?" if close else ""
             raise _fail(f"no pigment {n!r} in {spec['library']} (it has {', '.join(lib.names)}){hint}", file, fields[n])
-    amount = float(spec["amount"]) if "amount" in spec else None
+    amount = None if spec.get("amount") is None else float(spec["amount"])  # null: declared as the default
     obs = lib.observation if lib.spectral else None
     return _Glaze(mixture(lib, props, amount, source=path), obs, lib, spec["library"])
 

@@ -230,6 +230,39 @@ class Surface(_Part):
     k2: Annotated[Number, Field(ge=0, lt=1)] = Field(0.0, description="Saunderson's internal surface reflectance")
 
 
+#: The most a pair term may say, in magnitude: a bump is a log factor on K or S (e^10: 22,000 times), an amount
+#: term one per e-fold of the layer's amount (fitted ones are below 1.5 and 0.3).
+PAIR_BUMP_MAX, PAIR_AMOUNT_MAX = 10.0, 2.0
+
+
+class PairBasis(_Part):
+    """The Gaussian bumps the pair terms are made of."""
+
+    centres: list[Number] = Field(min_length=1, description="the bumps' centres, nm")
+    width: Annotated[Number, Field(gt=0)] = Field(description="the bumps' width, nm")
+
+
+class PairTerm(_Part):
+    """The terms of one pair of pigments measured mixed."""
+
+    pigments: list[Text] = Field(min_length=2, max_length=2, description="the pair: two of the library's pigments")
+    K_bumps: list[Annotated[Number, Field(ge=-PAIR_BUMP_MAX, le=PAIR_BUMP_MAX)]] = Field(
+        description="the log factor on K per bump, one per centre")
+    S_bumps: list[Annotated[Number, Field(ge=-PAIR_BUMP_MAX, le=PAIR_BUMP_MAX)]] = Field(
+        description="the log factor on S per bump, one per centre")
+    K_amount: Annotated[Number, Field(ge=-PAIR_AMOUNT_MAX, le=PAIR_AMOUNT_MAX)] = Field(
+        0.0, description="the log factor on K per e-fold of the amount")
+    S_amount: Annotated[Number, Field(ge=-PAIR_AMOUNT_MAX, le=PAIR_AMOUNT_MAX)] = Field(
+        0.0, description="the log factor on S per e-fold of the amount")
+
+
+class PairTerms(_Part):
+    """A library's `"pair_terms"` (docs/mixing.md)."""
+
+    basis: PairBasis = Field(description="`{centres, width}`")
+    pairs: list[PairTerm] = Field(description="one per pair measured mixed")
+
+
 class LibraryFile(BaseModel):
     """A mixable library (`diffwash fit-swatch --table` writes it; `diffwash predict` reads it)."""
 
@@ -242,8 +275,8 @@ class LibraryFile(BaseModel):
     grounds: dict[str, list[Reflectance]] = Field(min_length=1, description="ground name -> reflectance per band "
                                                   "(0..2), at least one")  # fmt: skip
     surface: Surface = Field(default_factory=Surface, description="`{\"k2\": ...}` (below)")
-    pair_terms: dict[str, Any] | None = Field(None, description="the pair terms of pairs measured mixed "
-                                              "(docs/mixing.md)")  # fmt: skip
+    pair_terms: PairTerms | None = Field(None, description="the pair terms of pairs measured mixed "
+                                         "(docs/mixing.md)")  # fmt: skip
     fit: dict[str, Any] | None = Field(None, description="the fit's record (not read back)")
 
     @pydantic.model_validator(mode="after")
@@ -534,7 +567,16 @@ class LayoutFile(_Part):
 
 # --- measurement and query tables (diffwash.measurements) ----------------------------------------------------------
 
+def plain_number_text(v: Any) -> Any:
+    """`v`, unless it is text that Python's float() reads but a table's reader should not: digits grouped by
+    `_` (`1_0` is not 10 in a CSV file, and no other program reads it so)."""
+    if isinstance(v, str) and "_" in v:
+        raise ValueError(f"not a number: {v.strip()!r}")
+    return v
+
+
 #: A table's number: CSV text such as `0.12` or `1e-3`, finite in float32.
+#: (`measurements` refuses digits grouped by `_` before the rows are checked: `plain_number_text`, once per row.)
 TableNumber = Annotated[float, pydantic.AllowInfNan(False), AfterValidator(_float32)]
 
 

@@ -280,40 +280,28 @@ def _observation(o: Any, path: Any) -> spectral.Observation:
         raise DiffwashError(e.problem, file=path, field=f"observation.{e.field or 'wavelengths'}") from None
 
 
-def _number(v: Any, path: Any, field: str) -> float:
-    if not finite_number(v):
-        raise DiffwashError("must be a finite number", file=path, field=field)
-    return float(v)
-
-
-def _pair_terms(d: Any, names: list[str], obs: spectral.Observation, path: Any) -> mixing.PairTerms:
-    """`PairTerms` from a library's `"pair_terms"` object (`{"basis": {...}, "pairs": [...]}`)."""
+def _pair_terms(spec: _schema.PairTerms, names: list[str], obs: spectral.Observation, path: Any) -> mixing.PairTerms:
+    """`PairTerms` from a library's `"pair_terms"`, declared (`_schema.PairTerms`: types, ranges) and checked
+    here against the library: the pairs' pigments, one bump per centre, each pair once."""
     if not obs.spectral:
         raise DiffwashError("pair terms need a spectral library (a band grid)", file=path, field="pair_terms")
-    basis = d.get("basis") if isinstance(d, dict) else None
-    if not isinstance(basis, dict) or not isinstance(d.get("pairs"), list):
-        raise DiffwashError("needs a basis and a list of pairs", file=path, field="pair_terms")
-    centres = tuple(float(c) for c in _vector(basis, "centres", None, path, "pair_terms.basis"))
-    width = _number(basis.get("width"), path, "pair_terms.basis.width")
-    if not centres or width <= 0:
-        raise DiffwashError("needs centres and a width > 0", file=path, field="pair_terms.basis")
+    centres = tuple(float(c) for c in spec.basis.centres)
     index = {n: i for i, n in enumerate(names)}
     members, cols = [], {k: [] for k in ("K_bumps", "S_bumps", "K_amount", "S_amount")}
-    for q, e in enumerate(d["pairs"]):
+    for q, e in enumerate(spec.pairs):
         where = f"pair_terms.pairs[{q}]"
-        two = e.get("pigments") if isinstance(e, dict) else None
-        if not isinstance(two, list) or len(two) != 2 or any(n not in index for n in two) or two[0] == two[1]:
+        two = e.pigments
+        if any(n not in index for n in two) or two[0] == two[1]:
             raise DiffwashError(f"pigments must name two different pigments of the library ({', '.join(names)})",
                                 file=path, field=f"{where}.pigments")  # fmt: skip
         i, j = index[two[0]], index[two[1]]
         members.append((min(i, j), max(i, j)))
         for k in ("K_bumps", "S_bumps"):
-            v = np.asarray(e.get(k), np.float64) if isinstance(e.get(k), list) else np.empty(0)
-            if v.shape != (len(centres),) or not np.all(np.isfinite(v)):
-                raise DiffwashError(f"must be a list of {len(centres)} finite numbers", file=path, field=f"{where}.{k}")
-            cols[k].append(v)
-        for k in ("K_amount", "S_amount"):
-            cols[k].append(_number(e.get(k, 0.0), path, f"{where}.{k}"))
+            if len(getattr(e, k)) != len(centres):
+                raise DiffwashError(f"must be a list of {len(centres)} numbers (one per centre of the basis), got "
+                                    f"{len(getattr(e, k))}", file=path, field=f"{where}.{k}")  # fmt: skip
+        for k in cols:
+            cols[k].append(getattr(e, k))
     if len(set(members)) != len(members):
         raise DiffwashError("names a pair twice", file=path, field="pair_terms.pairs")
     q, n = len(members), len(centres)
@@ -321,7 +309,7 @@ def _pair_terms(d: Any, names: list[str], obs: spectral.Observation, path: Any) 
            for k, v in cols.items()}  # fmt: skip
     return mixing.PairTerms(members=tuple(members), k_bumps=arr["K_bumps"],
                             s_bumps=arr["S_bumps"], k_amount=arr["K_amount"], s_amount=arr["S_amount"],
-                            centres=centres, width=width, wavelengths=obs.wavelengths)  # fmt: skip
+                            centres=centres, width=float(spec.basis.width), wavelengths=obs.wavelengths)  # fmt: skip
 
 
 def library_from_dict(d: Any, path: Any = None) -> Library:
@@ -341,7 +329,7 @@ def library_from_dict(d: Any, path: Any = None) -> Library:
     ref = float(refs[0])
     if np.any(refs != ref):
         # Thickness (a / r_i)^g_i = (a / r)^g_i (r / r_i)^g_i: another reference is a factor on that pigment's K and S.
-        if d.get("pair_terms") is not None:
+        if spec.pair_terms is not None:
             i = int(np.flatnonzero(refs != ref)[0])
             raise DiffwashError(f"differs from pigments[0]'s ({ref:g}); pair terms need one reference amount",
                                 file=path, field=f"pigments[{i}].amount_law.reference")  # fmt: skip
@@ -355,8 +343,8 @@ def library_from_dict(d: Any, path: Any = None) -> Library:
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam), reference=ref),
                              weights=jnp.asarray([p.mixing_weight for p in spec.pigments]), names=tuple(names),
                              wavelengths=obs.wavelengths)  # fmt: skip
-    if d.get("pair_terms") is not None:
-        palette = eqx.tree_at(lambda p: p.pairs, palette, _pair_terms(d["pair_terms"], names, obs, path),
+    if spec.pair_terms is not None:
+        palette = eqx.tree_at(lambda p: p.pairs, palette, _pair_terms(spec.pair_terms, names, obs, path),
                               is_leaf=lambda x: x is None)  # fmt: skip
     grounds = {k.lower(): np.asarray(v, np.float64) for k, v in spec.grounds.items()}
     extras = [_extras(p, path, f"pigments[{i}]") for i, p in enumerate(d["pigments"])]

@@ -194,7 +194,10 @@ class PairTerms(eqx.Module):
         phi = jnp.asarray(self.basis(), amounts.dtype)
         ck = (inter @ self.k_bumps) @ phi.T + (inter * lt) @ self.k_amount[:, None]
         cs = (inter @ self.s_bumps) @ phi.T + (inter * lt) @ self.s_amount[:, None]
-        return jnp.exp(ck), jnp.exp(cs)
+        # Terms within their declared bounds can still add up (many bumps on one band, a thick layer): the factor
+        # is capped at e^±27.6 (10^±12, COEFFICIENT_MAX), so that K and S stay finite in float32.
+        cap_f = math.log(1e12)
+        return jnp.exp(jnp.clip(ck, -cap_f, cap_f)), jnp.exp(jnp.clip(cs, -cap_f, cap_f))
 
     def subset(self, index: list[int]) -> PairTerms | None:
         """The terms of the pairs among pigments `index` (a palette of those pigments, in that order), or None."""

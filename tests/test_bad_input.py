@@ -587,9 +587,17 @@ def test_a_negative_seed_is_blamed_on_the_seed(cli, tmp_path):
     assert not (tmp_path / "card.png").exists()
 
 
+@pytest.mark.parametrize("args", [["Cadmium Red"], ["--library", str(ROOT / "data" / "libraries" / "ntu-four.json"),
+                                                    "--patches", "P1:1"]])  # fmt: skip
+def test_a_seed_past_32_bits_is_refused_as_in_scenes(cli, tmp_path, args):
+    refused(cli("swatch-card", *args, "--seed", str(2**32), "-o", "card.png"), "--seed", "< 2^32")
+    assert not (tmp_path / "card.png").exists()
+
+
 @pytest.mark.parametrize("look, needles", [
     ({"strokes": {"length": 1e30}}, ("watercolour.strokes.length", "at most 10 times the mesh's size", "1e+30")),
     ({"paper": {"image": "notes.png"}}, ("watercolour.paper.image", "notes.png", "is not an image diffwash reads")),
+    ({"paper": {"density": 1e30}}, ("watercolour.paper.density", "<= 10", "1e+30")),  # rendered non-finite: exit 1
 ])  # fmt: skip
 def test_the_looks_keys_are_refused_before_rendering(cli, tmp_path, look, needles):
     (tmp_path / "notes.png").write_text("a text file, not an image\n")

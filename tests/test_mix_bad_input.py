@@ -57,6 +57,20 @@ def test_bad_tables_are_refused_and_nothing_is_written(cli, tmp_path, body, need
     assert not (tmp_path / "lib.json").exists()
 
 
+@pytest.mark.parametrize(
+    "text, needles",
+    [
+        (HEAD.replace(",500,", ",400,") + PAPER, ("line 1", "header", "'400' appears twice")),
+        (HEAD.replace("ground", "pigment") + PAPER, ("line 1", "'pigment' appears twice")),
+        (HEAD + PAPER.replace("0.82", "0_82"), ("line 2", "500", "not a number: '0_82'")),
+    ],
+)  # fmt: skip
+def test_duplicate_columns_and_grouped_digits_are_refused(cli, tmp_path, text, needles):
+    (tmp_path / "t.csv").write_text(text + "P1,0.02,paper,0.2,0.1,0.5,0.6\n")
+    _refused(cli("fit-swatch", "--table", "t.csv", "-o", "lib.json"), "t.csv", *needles)
+    assert not (tmp_path / "lib.json").exists()
+
+
 def test_reflectance_a_little_above_one_is_data(cli, tmp_path):
     from diffwash import measurements
 
@@ -81,6 +95,8 @@ def _library(tmp_path, wavelengths=(400, 500, 600, 700)):
         ("pigment,amount,ground\nP1+P1,0.01,paper\n", ("q.csv", "line 2", "amount")),
         ("pigment,amount,ground\nP1,0.01,board\n", ("q.csv", "line 2", "ground", "board")),
         ("pigment,amount\nP1,0.01\n", ("q.csv", "ground")),
+        ("pigment,amount,amount,ground\nP1,0.01,0.02,paper\n", ("q.csv", "line 1", "'amount' appears twice")),
+        ("pigment,amount,ground\nP1,1_0,paper\n", ("q.csv", "line 2", "amount", "not a number: '1_0'")),
     ],
 )  # fmt: skip
 def test_bad_queries_are_refused(cli, tmp_path, queries, needles):
@@ -88,6 +104,57 @@ def test_bad_queries_are_refused(cli, tmp_path, queries, needles):
     (tmp_path / "q.csv").write_text(queries)
     _refused(cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv"), *needles)
     assert not (tmp_path / "p.csv").exists()
+
+
+def _pairs(path, change):
+    lib = json.loads((ROOT / "data" / "libraries" / "ntu-four.json").read_text())
+    change(lib["pair_terms"])
+    path.write_text(json.dumps(lib))
+
+
+def _set(key, value, pair=1):
+    def change(t):
+        (t["pairs"][pair] if pair is not None else t["basis"])[key] = value
+
+    return change
+
+
+@pytest.mark.parametrize(
+    "change, needles",
+    [
+        (lambda t: t["pairs"][1]["pigments"].__setitem__(0, ["P1"]), ("pairs[1].pigments[0]", "must be text")),
+        (lambda t: t["pairs"][1]["pigments"].__setitem__(0, {}), ("pairs[1].pigments[0]", "must be text")),
+        (lambda t: t["pairs"][1]["K_bumps"].__setitem__(0, [1]), ("pairs[1].K_bumps[0]", "must be a number")),
+        (lambda t: t["pairs"][1]["S_bumps"].__setitem__(0, [1]), ("pairs[1].S_bumps[0]", "must be a number")),
+        (lambda t: t["pairs"][1]["K_bumps"].__setitem__(0, 1e30), ("pairs[1].K_bumps[0]", "<= 10")),
+        (lambda t: t["pairs"][1]["K_bumps"].__setitem__(0, 1e39), ("pairs[1].K_bumps[0]", "float32")),
+        (_set("S_amount", 1e30), ("pairs[1].S_amount", "<= 2")),
+        (_set("K_amount", True), ("pairs[1].K_amount", "number")),
+        (_set("K_bumps", [1, 2]), ("pairs[1].K_bumps", "4 numbers")),
+        (_set("width", 0, pair=None), ("pair_terms.basis.width", "> 0")),
+        (_set("centres", "380", pair=None), ("pair_terms.basis.centres",)),
+        (_set("shape", "round", pair=None), ("pair_terms.basis", "shape")),
+    ],
+)  # fmt: skip
+def test_bad_pair_terms_are_refused_naming_the_key(cli, tmp_path, change, needles):
+    """pair_terms was read by hand: a list where a name or a bump belongs crashed predict, and a bump of 1e30
+    predicted black. It is declared now (`_schema.PairTerms`)."""
+    _pairs(tmp_path / "lib.json", change)
+    (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1+P4,0.01+0.02,paper\n")
+    _refused(cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv"), "lib.json", *needles)
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_pair_terms_that_add_up_past_float32_still_predict_finite_colours(cli, tmp_path):
+    def change(t):
+        t["basis"] = {"centres": [380.0] * 4, "width": 1e30}
+        t["pairs"][1].update(K_bumps=[10.0] * 4, K_amount=2.0)
+
+    _pairs(tmp_path / "lib.json", change)
+    (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1+P4,1e30+1e30,paper\nP1+P4,0.01+0.02,paper\n")
+    status, err = cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv")
+    assert status == 0 and err == "", err
+    assert "nan" not in (tmp_path / "p.csv").read_text().lower()
 
 
 def test_a_library_on_a_grid_no_observer_sees_is_refused(cli, tmp_path):
@@ -316,3 +383,48 @@ def test_only_a_row_holding_over_a_quarter_of_the_loss_is_named():
     got = dominant_rows(np.r_[np.full(9, 1.0), 4.0], rows)  # 16 / 25 of the loss
     assert [r["line"] for r in got] == [11] and got[0]["share"] == pytest.approx(0.64)
     assert dominant_rows(np.array([5.0, 0.0, 0.0]), rows[:3]) == []  # too few rows to say
+
+@pytest.mark.parametrize("patches, unknown", [("P1/P4:1/1", None), ("P1+P4/P8:1+1/2", None), ("P1/P9:1/1", "P9"),
+                                              ("P9+P1/P4:1+1/1", "P9")])  # fmt: skip
+def test_a_cards_glaze_stacks_are_checked_layer_by_layer(cli, tmp_path, patches, unknown):
+    """The names of a stack were looked up whole ('P1/P4 not in the library'): the help's own example failed."""
+    lib = ROOT / "data" / "libraries" / "ntu-four.json"
+    result = cli("swatch-card", "--library", lib, "--patches", patches, "--ideal", "-o", "card.png")
+    if unknown is None:
+        assert result[0] == 0, result[1]
+        assert {p["pigment"] for p in json.loads((tmp_path / "card.json").read_text())["patches"]} == {patches.split(":")[0]}
+    else:
+        _refused(result, "--patches", f"{unknown} not in the library")
+        assert not (tmp_path / "card.png").exists()
+
+
+def test_a_mixture_glaze_with_a_null_amount_takes_the_librarys_reference(cli, tmp_path):
+    """`"amount": null` is declared (LibraryGlaze: a positive number or null, the default) but crashed the scene's
+    reader with a TypeError."""
+    scene = json.loads((ROOT / "data" / "scenes" / "mixture.json").read_text())
+    scene.update(mesh=str(ROOT / "data" / "meshes" / "sphere.ply"), image={"width": 16, "height": 16})
+    for key in ("wash", "unlit"):
+        scene[key]["library"] = str(ROOT / "data" / "libraries" / "ntu-four.json")
+    scene["wash"]["amount"] = None
+    (tmp_path / "s.json").write_text(json.dumps(scene))
+    status, err = cli("render", "s.json", "-o", "r.png")
+    assert status == 0 and err == "", err
+    assert (tmp_path / "r.png").exists()
+
+
+@pytest.mark.parametrize("other, refused", [("p1", True), ("P1", False), (" P1 ", False)])
+def test_a_card_layout_spells_each_pigment_one_way(cli, tmp_path, other, refused):
+    """A layout naming P1 and p1 was fitted (tables refuse the same collision, naming the line)."""
+    from diffwash.fit import read_layout
+
+    lib = ROOT / "data" / "libraries" / "ntu-four.json"
+    assert cli("swatch-card", "--library", lib, "--patches", "P1:1,P4:1,P1+P4:1+1", "--ideal", "-o", "card.png")[0] == 0
+    layout = json.loads((tmp_path / "card.json").read_text())
+    layout["patches"][4]["pigment"] = f"{other}+P4"
+    (tmp_path / "card.json").write_text(json.dumps(layout))
+    if refused:
+        _refused(cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "lib.json"), "card.json",
+                 "patches[4].pigment", "'p1' and 'P1' (patches[0]) name the same pigment")  # fmt: skip
+        assert not (tmp_path / "lib.json").exists()
+    else:
+        assert {n for p in read_layout(tmp_path / "card.json").patches for n in p.pigments} == {"P1", "P4"}

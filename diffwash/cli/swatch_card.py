@@ -9,6 +9,7 @@ or mixed in one layer (diffwash.swatchcard.make_mixture_card): a card fit-swatch
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import diffwash
@@ -42,8 +43,8 @@ def run(args) -> int:
     out = Path(args.output)
     dio.image_format_for(out, bits=args.bits, field="--output")
     layout = Path(args.layout) if args.layout else out.with_suffix(".json")
-    if args.seed < 0:
-        raise DiffwashError(f"must be a whole number >= 0, got {args.seed}", field="--seed")
+    if not 0 <= args.seed < 2**32:  # as a scene's seeds: what every random generator diffwash uses takes
+        raise DiffwashError(f"must be a whole number >= 0 and < 2^32, got {args.seed}", field="--seed")
     if args.amount_per_coat is not None:
         dio.check_float32(args.amount_per_coat, field="--amount-per-coat")
     if args.library is not None or args.patches is not None:
@@ -83,7 +84,7 @@ def _mixture_card(args, out: Path, layout: Path) -> int:
     patches = parse_patches(args.patches)
     lib = diffwash.library.load_library(args.library)
     known = {n.lower() for n in lib.names}
-    unknown = sorted({n for names, _ in patches for n in names.split("+") if n.lower() not in known})
+    unknown = sorted({n for names, _ in patches for n in re.split(r"[+/]", names) if n.lower() not in known})
     if unknown:
         raise DiffwashError(f"{', '.join(unknown)} not in the library (it has {', '.join(lib.names)})", field="--patches")
     effects = diffwash.swatchcard.IDEAL if args.ideal else diffwash.swatchcard.CameraEffects()

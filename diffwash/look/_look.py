@@ -127,7 +127,8 @@ class Look(eqx.Module):
     edge_darkening: Any = _leaf("edges", "darkening", 3.0, "k_e: pigment gathered at a glaze's edge")
     edge_width: Any = _leaf("edges", "width", 3.0, "the edge's width: the blur's sigma in pixels")
     granulation: Any = _leaf("paper", "granulation", 0.6, "k_g: 0 even, 1 Curtis et al.'s equilibrium", at_most=1.0)
-    density: Any = _leaf("paper", "density", 0.25, "k_rho: how much a pigment's density scales its thickness")
+    density: Any = _leaf("paper", "density", 0.25, "k_rho: how much a pigment's density scales its thickness",
+                         at_most=10.0)
     turbulence: Any = _leaf("unevenness", "turbulence", 0.18, "amplitude of the low-frequency turbulent flow")
     dispersion: Any = _leaf("unevenness", "dispersion", 0.08, "amplitude of the high-frequency pigment dispersion")
     paper_shading: Any = _leaf("paper", "shading", 0.08, "strength of the paper's relief shading")

@@ -187,3 +187,26 @@ def test_fit_swatch_writes_a_mixture_report_and_refuses_pair_terms_for_rgb(three
     rgb = ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv"
     assert main(["fit-swatch", "--table", str(rgb), "--pair-terms", "on", "-o", str(tmp_path / "x.json")]) == 2
     assert "--pair-terms" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+
+
+def test_fitted_pair_terms_stay_within_what_a_library_file_may_hold(monkeypatch):
+    """A pair's fit that ran off (here forced to 50 and 5) is clipped to the declared bounds (`_schema.PairTerm`),
+    so the library it writes loads again instead of being refused by `predict`."""
+    from diffwash import _schema
+
+    real = _pairs._fit_pairs
+
+    def ran_off(*args):
+        theta, done, dec = real(*args)
+        n = (theta.shape[-1] - 2) // 2
+        return theta.at[:, :n].set(50.0).at[:, -1].set(-5.0), done, dec
+
+    monkeypatch.setattr(_pairs, "_fit_pairs", ran_off)
+    pal = _palette(jnp.float32)
+    obs = spectral.observation(GRID)
+    A = np.array([[a, b, 0.0] for a in (0.01, 0.04) for b in (0.02, 0.08)])
+    paper = np.full((len(A), len(GRID)), 0.85)
+    lab = np.asarray(obs.lab(pal.reflectance(jnp.asarray(A), jnp.asarray(paper))))
+    terms, _ = _pairs.fit_pair_terms(pal, A, paper, lab, obs.lab, steps=2)
+    assert float(jnp.max(terms.k_bumps)) == _schema.PAIR_BUMP_MAX
+    assert float(jnp.min(terms.s_amount)) == -_schema.PAIR_AMOUNT_MAX

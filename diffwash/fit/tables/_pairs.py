@@ -26,6 +26,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ... import colorimetry, mixing
+from ..._schema import PAIR_AMOUNT_MAX, PAIR_BUMP_MAX
 from .._bandlsq import GN_TOL, Convergence, loss_floor, newton_decrement
 
 __all__ = ["fit_pair_terms", "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
@@ -156,7 +157,10 @@ def fit_pair_terms(
     gam, w = jnp.asarray(palette.law.gamma, dtype)[ij], jnp.asarray(palette.weights, dtype)[ij]
     theta, done, dec = _fit_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, bumps, ridge, steps,
                              K, S, gam, w, A2, G2, lab2, mask)  # fmt: skip
-    terms = _terms(theta, tuple(pairs), bumps, centres, width, palette.wavelengths)
+    # A library file holds pair terms within their declared bounds (`_schema.PairTerm`): clipped there, a fit's
+    # library always loads again (fitted terms lie far inside: below 1.5 and 0.3 on the NTU table).
+    bound = jnp.asarray([PAIR_BUMP_MAX] * (2 * bumps) + [PAIR_AMOUNT_MAX] * 2, theta.dtype)
+    terms = _terms(jnp.clip(theta, -bound, bound), tuple(pairs), bumps, centres, width, palette.wavelengths)
     dec = np.asarray(dec, np.float64)
     if np.all(done):
         return terms, Convergence(converged=True, steps=steps, stage=f"pair terms ({len(pairs)} pairs)")

@@ -8,7 +8,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -174,7 +173,8 @@ def test_the_table_schema_refuses_at_the_named_line_and_column(tmp_path, table, 
             measurements.read_queries(tmp_path / "q.csv")
 
 
-def test_four_thousand_rows_are_checked_well_under_a_second(tmp_path):
+def test_four_thousand_rows_are_checked_in_one_call(tmp_path):
+    """Every row of a table at the row limit is checked (its speed: `python benchmarks/bench_schema.py`)."""
     rng = np.random.default_rng(0)
     waves = range(380, 790, 10)
     rows = [f"P{i % 7},{rng.uniform(0.01, 0.05):.4f},paper," + ",".join(f"{v:.4f}" for v in rng.uniform(0, 1, 41))
@@ -184,10 +184,8 @@ def test_four_thousand_rows_are_checked_well_under_a_second(tmp_path):
     header, body = measurements._read_csv(tmp_path / "t.csv")
     col = measurements._key_columns(header, tmp_path)
     vcols, _ = measurements._band_columns(header, tmp_path)
-    measurements._checked_rows("MeasurementRow", body[:1], header, col, vcols, tmp_path)  # the checker, built once
-    start = time.perf_counter()
     checked = measurements._checked_rows("MeasurementRow", body, header, col, vcols, tmp_path)
-    assert time.perf_counter() - start < 0.5 and len(checked) == 4000
+    assert len(checked) == 4000
 
 
 def test_pydantic_loads_only_when_a_file_is_checked():

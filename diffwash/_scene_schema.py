@@ -215,7 +215,9 @@ EFFECT_MODELS: dict[str, type[BaseModel]] = {effect: _effect_model(effect) for e
 def _effect_field(effect: str) -> tuple[Any, Any]:
     model = EFFECT_MODELS[effect]
     on = effect in ON_BY_DEFAULT
-    return (Annotated[model | Flag, Shaped("must be a JSON object or false", union=True)],
+    # `true` is the effect's defaults: read as `{}`, so an effect with a required key (mix's map) says it is missing
+    return (Annotated[model | Flag, Shaped("must be a JSON object or false", union=True),
+                      pydantic.BeforeValidator(lambda v: {} if v is True else v)],
             Field(model() if on else False, description=f"{'on' if on else 'off'} unless set; `false` is off, "
                   f"`true` or `{{}}` its defaults ({model.__name__})"))  # fmt: skip
 

@@ -89,6 +89,7 @@ BAD = [
     ({"mix": {"map": [0.5, 0.5]}}, "watercolour.mix.map", "one value per vertex"),
     ({"mix": {"map": {"axis": [0, 0, 0]}}}, "watercolour.mix.map.axis", "non-zero"),
     ({"mix": {}}, "watercolour.mix.map", "missing key"),
+    ({"mix": True}, "watercolour.mix.map", "missing key"),  # `true` is the defaults, and mix has no default map
     ({"mix": {"wash": {"pigment": "No Such Pigment"}, "map": {"axis": [1, 0, 0]}}}, "watercolour.mix.wash.pigment", "unknown pigment"),
     ({"edge": {}}, "watercolour.edge", "unknown key"),
     ({"shadow": {"strength": 2}}, "watercolour.shadow.strength", "must be <= 1, got 2"),

@@ -410,21 +410,3 @@ def test_a_mixture_glaze_with_a_null_amount_takes_the_librarys_reference(cli, tm
     status, err = cli("render", "s.json", "-o", "r.png")
     assert status == 0 and err == "", err
     assert (tmp_path / "r.png").exists()
-
-
-@pytest.mark.parametrize("other, refused", [("p1", True), ("P1", False), (" P1 ", False)])
-def test_a_card_layout_spells_each_pigment_one_way(cli, tmp_path, other, refused):
-    """A layout naming P1 and p1 was fitted (tables refuse the same collision, naming the line)."""
-    from diffwash.fit import read_layout
-
-    lib = ROOT / "data" / "libraries" / "ntu-four.json"
-    assert cli("swatch-card", "--library", lib, "--patches", "P1:1,P4:1,P1+P4:1+1", "--ideal", "-o", "card.png")[0] == 0
-    layout = json.loads((tmp_path / "card.json").read_text())
-    layout["patches"][4]["pigment"] = f"{other}+P4"
-    (tmp_path / "card.json").write_text(json.dumps(layout))
-    if refused:
-        _refused(cli("fit-swatch", "card.png", "--layout", "card.json", "-o", "lib.json"), "card.json",
-                 "patches[4].pigment", "'p1' and 'P1' (patches[0]) name the same pigment")  # fmt: skip
-        assert not (tmp_path / "lib.json").exists()
-    else:
-        assert {n for p in read_layout(tmp_path / "card.json").patches for n in p.pigments} == {"P1", "P4"}

@@ -196,16 +196,11 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
     paper_box = _box(model.paper.box, file, "paper.box", size)
     refl = model.paper.reflectance if model.paper.reflectance is not None else list(DEFAULT_PAPER)
     black = None if model.black is None else _box(model.black.box, file, "black.box", size)
-    patches, seen = [], {}
+    patches = []
     for i, p in enumerate(model.patches):
         where = f"patches[{i}]"
         box = _box(p.box, file, f"{where}.box", size)
         names, layers = _pigment_layers(p.pigment, file, f"{where}.pigment") if p.pigment is not None else ((), ())
-        for n in names:  # one spelling per pigment, as in tables: a fit would make P1 and p1 one pigment, or two
-            first = seen.setdefault(_name_key(n), (n, where))
-            if first[0] != n:
-                raise _fail(f"{n!r} and {first[0]!r} ({first[1]}) name the same pigment (names are compared ignoring "
-                            "case and spaces): write them alike", file, f"{where}.pigment")  # fmt: skip
         amounts = _stack_coats(p.coats, layers or (1,), file, f"{where}.coats", p.pigment)
         if p.ground == "black" and black is None:
             raise _fail("lies on black, but the layout has no 'black' box of bare black to measure it", file,

@@ -697,7 +697,7 @@ def _rgb_laplace(fit: "_RGBFit", n_rows: int, P: int, gamma: bool, rank: int = _
     coefficients $c$ (log K and log S $= \Phi c$ per pigment) and the shared terms; $\Sigma_c = \sigma^2 H^{-1}$ at
     the fit (H the Gauss-Newton matrix of every residual: the rows' CIEDE2000 components, the smoothness and ridge
     priors, the shared terms' prior; $\sigma$ 1.4826 times the rows' median absolute component), marginalised onto
-    $c$ and log gamma and carried onto the bands, $\Sigma_	heta = M \Sigma_c M^	op$, $M$ = diag($\Phi$ per
+    $c$ and log gamma and carried onto the bands, $\Sigma_\theta = M \Sigma_c M^\top$, $M$ = diag($\Phi$ per
     pigment and quantity, identity on log gamma). Without a fitted amount law the log gamma block is 0."""
     flat, shared = fit.y
     phi = np.asarray(fit.fn.phi, np.float64)
@@ -705,22 +705,14 @@ def _rgb_laplace(fit: "_RGBFit", n_rows: int, P: int, gamma: bool, rank: int = _
     v = jnp.concatenate([flat.ravel(), shared])
     r, J = (np.asarray(x, np.float64) for x in _rgb_jacobian(fit.fn, v, n_flat, flat.shape, fit.args))
     sigma2 = float((1.4826 * np.median(np.abs(r[: 3 * n_rows]))) ** 2)
-    lam, V = np.linalg.eigh(J.T @ J)
-    lam = np.maximum(lam, 1e-9 * max(lam.max(), 1e-30))
     idx = np.concatenate([np.arange(n_flat), n_flat + np.arange(P) if gamma else np.zeros(0, int)])
-    Vt = V[idx]
-    cov = sigma2 * (Vt / lam) @ Vt.T  # over (c, log gamma)
+    cov = _posterior.marginal_covariance(J.T @ J, idx, sigma2)  # over (c, log gamma)
     B = phi.shape[0]
     M = np.zeros((2 * P * B + P, len(idx)))
     M[: 2 * P * B, :n_flat] = np.kron(np.eye(2 * P), phi)
     if gamma:
         M[2 * P * B :, n_flat:] = np.eye(P)
-    full = M @ cov @ M.T
-    ev, U = np.linalg.eigh(full)
-    top = np.argsort(ev)[::-1][:rank]
-    F = U[:, top] * np.sqrt(np.maximum(ev[top], 0))
-    diag = np.maximum(np.diag(full) - np.sum(F * F, axis=1), 0.0)
-    return F, diag, float(np.sqrt(sigma2))
+    return (*_posterior.factored(M @ cov @ M.T, rank), float(np.sqrt(sigma2)))
 
 
 def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):

@@ -46,7 +46,8 @@ from ... import _regions, colorimetry
 from . import _seen
 from .._bandlsq import BandLevenbergMarquardt, gauss_newton_blocks
 
-__all__ = ["laplace", "refit_held_out", "calibrate_scale", "shrink_per_pigment", "owners", "scaled"]
+__all__ = ["laplace", "marginal_covariance", "factored", "refit_held_out", "calibrate_scale", "shrink_per_pigment",
+           "owners", "scaled"]
 
 #: Leading eigenvectors of the covariance kept (the rest: its diagonal).
 RANK = 24
@@ -85,18 +86,28 @@ def laplace(fn, y, n_rows: int, P: int, gamma: bool, rank: int = RANK):
         H[sl, B * Q :] = Hbg[b]
         H[B * Q :, sl] = Hbg[b].T
     H[B * Q :, B * Q :] = Hgg
-    lam, V = np.linalg.eigh(0.5 * (H + H.T))
-    lam = np.maximum(lam, 1e-9 * max(lam.max(), 1e-30))
     idx = _theta_index(B, P, gamma)
-    Vt = V[idx]
     m = 2 * P * B + P
     full = np.zeros((m, m))
-    full[: len(idx), : len(idx)] = sigma2 * (Vt / lam) @ Vt.T
+    full[: len(idx), : len(idx)] = marginal_covariance(H, idx, sigma2)
+    return (*factored(full, rank), float(np.sqrt(sigma2)))
+
+
+def marginal_covariance(H: np.ndarray, idx: np.ndarray, sigma2: float) -> np.ndarray:
+    r"""$\sigma^2 H^{-1}$ on the parameters `idx` (the others marginalised out), through H's eigendecomposition
+    with its eigenvalues floored at 1e-9 of the largest (a direction nothing pins stays finite)."""
+    lam, V = np.linalg.eigh(0.5 * (H + H.T))
+    lam = np.maximum(lam, 1e-9 * max(lam.max(), 1e-30))
+    Vt = V[idx]
+    return sigma2 * (Vt / lam) @ Vt.T
+
+
+def factored(full: np.ndarray, rank: int = RANK) -> tuple[np.ndarray, np.ndarray]:
+    """A covariance as its `rank` leading eigenvectors (scaled: the factor $F$) and the diagonal they leave."""
     ev, U = np.linalg.eigh(full)
-    top = np.argsort(ev)[::-1][: min(rank, m)]
+    top = np.argsort(ev)[::-1][: min(rank, full.shape[0])]
     F = U[:, top] * np.sqrt(np.maximum(ev[top], 0))
-    diag = np.maximum(np.diag(full) - np.sum(F * F, axis=1), 0.0)
-    return F, diag, float(np.sqrt(sigma2))
+    return F, np.maximum(np.diag(full) - np.sum(F * F, axis=1), 0.0)
 
 
 def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray], *, rtol: float,

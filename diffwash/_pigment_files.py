@@ -29,9 +29,8 @@ def default_library_path() -> Path:
     return Path(str(resources.files("diffwash") / "data" / "pigments" / "seed.json"))
 
 
-def key(name: str) -> str:
-    """How pigment names are matched: case and runs of spaces ignored."""
-    return " ".join(name.casefold().split())
+#: How pigment names are matched: case and runs of spaces ignored (the declared formats' rule).
+key = _schema.name_key
 
 
 def parse_record(obj: Any, *, file: str | os.PathLike | None = None, where: str = "") -> dict[str, Any]:

@@ -61,7 +61,7 @@ from scipy.ndimage import binary_erosion
 from ... import colorimetry
 from ..._errors import DiffwashError
 from ..._io import check_float32, read_json
-from ..._schema import LayoutFile, validate
+from ..._schema import LayoutFile, name_key, validate
 from ...shading import DEFAULT_PAPER
 from ._camera import CameraModel, fit_camera, needed_references, spectrum_lab
 from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
@@ -224,9 +224,8 @@ def _reference_lab(r: Any) -> np.ndarray:
     return spectrum_lab(np.asarray(r.wavelengths, np.float64), np.asarray(r.spectrum, np.float64))
 
 
-def _name_key(name: str) -> str:
-    """Pigment names match ignoring case and runs of spaces (as the libraries look them up)."""
-    return " ".join(name.casefold().split())
+#: Pigment names match ignoring case and runs of spaces, as the libraries look them up.
+_name_key = name_key
 
 
 def _pigment_names(value: Any, file: Any, fld: str) -> tuple[str, ...]:

@@ -155,8 +155,8 @@ def parse_watercolour(
     """
     if spec is None or spec is False:
         return None
-    # Each effect's settings (`true`: its defaults), or None when it is off.
-    eff = {name: EFFECT_MODELS[name]() if v is True else (None if v is False else v) for name, v in spec}
+    # Each effect's settings (the declaration reads `true` as its defaults), or None when it is off.
+    eff = {name: None if v is False else v for name, v in spec}
     # An effect that is off contributes 0, but for a step (the shadow's bias), which keeps its default.
     values = {leaf: 0.0 if spec.fit else spec.default for leaf, spec in wl.leaf_specs().items()}
     for leaf, (effect, key) in _LEAF_KEYS.items():

@@ -1,6 +1,6 @@
 """Mixing real paint: fit and predict time, peak memory, and scores on pairs held out of the fit.
 
-    python benchmarks/bench_mix.py [--folds 4] [--only speed,seen,spectral,weights,rgb,mixbox,single,paper,small]
+    python benchmarks/bench_mix.py [--folds 4] [--only speed,seen,spectral,weights,rgb,mixbox,single,paper,small,never-mixed]
 
 Prints Markdown tables, on the NTU WPSM measurements in data/ntu-wpsm/:
 
@@ -26,6 +26,11 @@ Prints Markdown tables, on the NTU WPSM measurements in data/ntu-wpsm/:
 6. `small`: fit time of small tables with many band parameters (default settings, JIT included): a generated
    table of 40 paints, each once over two light grounds, 77 bands (400-780 nm, 5 nm), and 80 NTU rows resampled
    to the same grid.
+7. `never-mixed` (not in the default run): notebooks 06 and 07's held-out rows, P1+P12 and P12+P7 (32 rows),
+   predicted by the default fit (without pair terms, as the notebooks) of growing tables: the four paints
+   P1, P4, P7 and P12 (P12 never measured mixed: notebook 07); the four with one more paint X and X's mixtures
+   with P12, for each X the table mixes with P12; the four with all five such paints; the whole table less the
+   two pairs (notebook 06). Mean CIEDE2000 of the held-out rows, the share held by their 90% regions.
 
 Timings taken while other work runs on the machine are provisional.
 """
@@ -316,6 +321,31 @@ MODELS = {
 }
 
 
+def never_mixed() -> None:
+    """Notebooks 06 and 07's held-out P12 pairs from tables that measure P12 mixed with more and more paints."""
+    m = measurements.read_measurements(SPECTRAL)
+    held = {("P1", "P12"), ("P12", "P7")}
+    key = [tuple(sorted(set(p))) for p in m.pigments]
+    test = np.array([k in held for k in key])
+    four = {"P1", "P4", "P7", "P12"}
+    partners = sorted({q for k in set(key) - held if "P12" in k and len(k) == 2 for q in k} - four)
+    tables = [("P1, P4, P7, P12 (notebook 07)", set())] + [(f"+ {x} and {x}+P12", {x}) for x in partners]
+    tables.append((f"+ {', '.join(partners)} and their mixtures with P12", set(partners)))
+    for name, extra in tables:
+        sel = np.array([set(p) <= four or (len(set(p)) == 1 and set(p) <= extra)
+                        or ("P12" in p and set(p) <= extra | {"P12"}) for p in m.pigments])  # fmt: skip
+        _never_mixed_row(name, m, sel & ~test, test)
+    _never_mixed_row("the whole table less the two pairs (notebook 06)", m, ~test, test)
+
+
+def _never_mixed_row(name: str, m: measurements.Measurements, train: np.ndarray, test: np.ndarray) -> None:
+    t0 = time.perf_counter()
+    fit = fit_mixtures(m.select(train), model=MixModel(pairs=False))
+    h = score_library(fit.library, m.select(test))
+    print(f"| {name} | {int(train.sum())} | {h['mean_de2000']:.2f} | {100 * h['share_de_ab_5']:.1f}% | "
+          f"{100 * _held_by_regions(fit.library, m.select(test)):.1f}% | {time.perf_counter() - t0:.0f} s |", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--folds", type=int, default=4)
@@ -345,6 +375,11 @@ def main() -> None:
         print("\nSmall tables with many band parameters, default settings, JIT included:\n")
         print("| table | size | fit time | converged | mean dE2000 |\n|---|---|---|---|---|")
         small_tables()
+    if "never-mixed" in only:
+        print("\nNotebooks 06 and 07's held-out rows (P1+P12, P12+P7) as P12 is measured mixed with more paints:\n")
+        print("| table | rows | mean dE2000 | within dE*ab 5 | held by the 90% regions | fit time |")
+        print("|---|---|---|---|---|---|")
+        never_mixed()
     cv = [k for k in MODELS if k in only]
     if cv:
         print(f"\nLeave-pairs-out cross-validation, {args.folds} folds (held-out pairs' mixtures):\n")

@@ -220,7 +220,7 @@ def test_a_fold_is_refitted_from_the_fits_start_not_pulled_towards_the_full_fit(
 def test_a_paints_folds_run_as_far_as_the_fit_and_pair_folds_stay_capped(tmp_path):
     """Issue 24: the folds that hold out every mixture of one paint measure the `unmixed` model error. Stopped after
     40 + 8 steps they stayed near the fit's start, which predicts a never-mixed paint's mixtures better than a
-    converged fit does (notebook 06: P1's at 3.8 instead of 17.7 mean CIEDE2000), and the regions of P12's mixtures
+    converged fit does (notebook 07, then 06: P1's at 3.8 instead of 17.7 mean CIEDE2000), and the regions of P12's mixtures
     held 44% of them. Each such fold now runs as far as the fit itself; the many leave-pairs-out folds keep their
     cap."""
     from test_mix_fit import _truth, _write_table

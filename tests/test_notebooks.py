@@ -132,6 +132,20 @@ def _check_04(text: str) -> None:
 
 
 def _check_06(text: str) -> None:
+    # The whole NTU table with P1+P12 and P12+P7 held out (P12 measured mixed with five other paints): the 32
+    # held-out rows at 2.75 mean CIEDE2000, every one within dE*ab 5 (docs/mixing.md, "Notebooks 06 and 07"); their
+    # regions, from the leave-pairs-out model error (2.57 per axis), of median radius 7.0, hold every row.
+    got = ast.literal_eval(_find(r"held-out pairs: (\{[^}]*\})", text)[1])
+    assert got["rows"] == 32 and got["mean_de2000"] <= 3.2 and got["share_de_ab_5"] >= 0.9, got
+    assert got["held_by_90_regions"] >= 0.75 and got["median_de2000_90"] <= 10.0, got
+    errors = ast.literal_eval(_find(r"per axis\): (\{[^}]*\})", text)[1])
+    assert 1.0 <= errors["unseen"] <= 5.0 and "unmixed" not in errors, errors
+    # The report: P12's parameters are fixed by its rows and its mixtures, not left to a prior.
+    m = _find(r"P12: log K ([\d.]+), log S ([\d.]+), log gamma [\d.]+; from the prior: (\w+)", text)
+    assert float(m[1]) <= 0.5 and float(m[2]) <= 0.5 and m[3] == "nothing", m[0]
+
+
+def _check_07(text: str) -> None:
     # The held-out P12 mixtures (docs/mixing.md, the notebook's text): predicted at 15.56 mean CIEDE2000. Their 90%
     # regions take the worst model error of the paints whose mixtures the fit was refitted without (converged
     # folds): median radius about 31 (was ~63 when P12's posterior was unbounded), holding every row (44% when the
@@ -154,7 +168,7 @@ def _check_06(text: str) -> None:
 #: What each notebook prints of its own accuracy, checked after it runs (issue 24). Notebook 5 prints none.
 PRINTED_FIGURES = {"01-kubelka-munk": _check_01, "02-shading-and-the-lut": _check_02,
                    "03-fitting-a-swatch-photo": _check_03, "04-fit-bake-export-preview": _check_04,
-                   "06-mixing-real-paint": _check_06}  # fmt: skip
+                   "06-mixing-real-paint": _check_06, "07-a-paint-never-mixed": _check_07}  # fmt: skip
 
 
 def _slowest_cells(nb, n: int = 3) -> str:
@@ -219,7 +233,7 @@ def test_printed_figure_checks_fail_when_a_figure_drifts(drift):
         _check_03(NOTEBOOK_3_PRINTS.replace(*drift))
 
 
-NOTEBOOK_6_PRINTS = """held-out pairs: {'rows': 32, 'share_de_ab_5': 0.062, 'mean_de2000': 15.564, 'held_by_90_regions': 1.0, 'median_de2000_90': 30.648}
+NOTEBOOK_7_PRINTS = """held-out pairs: {'rows': 32, 'share_de_ab_5': 0.062, 'mean_de2000': 15.564, 'held_by_90_regions': 1.0, 'median_de2000_90': 30.648}
 model error the fit measured on its own table (CIELAB units per axis): {'single': 0.5789, 'seen': 0.4802, 'unseen': 7.2734, 'unmixed': 17.5195}
     P12: log K 0.00, log S 2.63, log gamma 0.00; from the prior: scattering; would pin it: the paint over black
 held-out P12 mixtures now: mean 90% radius 30.8
@@ -233,10 +247,31 @@ held-out P12 mixtures now: mean 90% radius 30.8
      ("'held_by_90_regions': 1.0", "'held_by_90_regions': 0.438"), ("'unmixed': 17.5195", "'unmixed': 7.4346"),
      ("'mean_de2000': 15.564", "'mean_de2000': 16.5"), ("1. P4+P12", "1. P12"), ("after it 13.8", "after it 29.0")],
 )
-def test_notebook_6_checks_fail_on_vacuous_or_overconfident_regions(drift):
-    """Regions of ~60 that hold every held-out row (notebook 6 before its posterior was bounded by each paint's own
+def test_notebook_7_checks_fail_on_vacuous_or_overconfident_regions(drift):
+    """Regions of ~60 that hold every held-out row (notebook 7, then notebook 6, before its posterior was bounded by each paint's own
     rows), regions that hold 44% (its paint folds stopped after 40 + 8 steps), a prediction worse than today's, or
     `suggest` no longer naming a mixture of P12: each fails its check."""
+    _check_07(NOTEBOOK_7_PRINTS)
+    with pytest.raises(AssertionError):
+        _check_07(NOTEBOOK_7_PRINTS.replace(*drift))
+
+
+NOTEBOOK_6_PRINTS = """held-out pairs: {'rows': 32, 'share_de_ab_5': 1.0, 'mean_de2000': 2.749, 'held_by_90_regions': 1.0, 'median_de2000_90': 7.039}
+model error the fit measured on its own table (CIELAB units per axis): {'single': 1.1199, 'seen': 1.3188, 'unseen': 2.5654}
+    P12: log K 0.19, log S 0.20, log gamma 0.04; from the prior: nothing
+"""
+
+
+@pytest.mark.parametrize(
+    "drift",
+    [("'mean_de2000': 2.749", "'mean_de2000': 15.564"), ("'share_de_ab_5': 1.0", "'share_de_ab_5': 0.062"),
+     ("'median_de2000_90': 7.039", "'median_de2000_90': 30.648"), ("'held_by_90_regions': 1.0", "'held_by_90_regions': 0.5"),
+     ("'unseen': 2.5654}", "'unseen': 2.5654, 'unmixed': 17.5195}"), ("prior: nothing", "prior: scattering"),
+     ("log S 0.20", "log S 2.63")],  # fmt: skip
+)
+def test_notebook_6_checks_fail_when_its_held_out_pairs_drift(drift):
+    """Notebook 6's held-out pairs predicted as badly as when P12 was never measured mixed (its old 15.6), regions
+    that say nothing or hold half the rows, or P12 left to a prior: each fails its check."""
     _check_06(NOTEBOOK_6_PRINTS)
     with pytest.raises(AssertionError):
         _check_06(NOTEBOOK_6_PRINTS.replace(*drift))

@@ -133,8 +133,8 @@ def _check_04(text: str) -> None:
 
 def _check_06(text: str) -> None:
     # The whole NTU table with P1+P12 and P12+P7 held out (P12 measured mixed with five other paints): the 32
-    # held-out rows at 2.75 mean CIEDE2000, every one within dE*ab 5 (docs/mixing.md, "Notebooks 06 and 07"); their
-    # regions, from the leave-pairs-out model error (2.57 per axis), of median radius 7.0, hold every row.
+    # held-out rows at 2.67 mean CIEDE2000, every one within dE*ab 5 (docs/mixing.md, "Notebooks 06 and 07"); their
+    # regions, from the leave-pairs-out model error (2.60 per axis), of median radius 7.0, hold every row.
     got = ast.literal_eval(_find(r"held-out pairs: (\{[^}]*\})", text)[1])
     assert got["rows"] == 32 and got["mean_de2000"] <= 3.2 and got["share_de_ab_5"] >= 0.9, got
     assert got["held_by_90_regions"] >= 0.75 and got["median_de2000_90"] <= 10.0, got
@@ -146,12 +146,13 @@ def _check_06(text: str) -> None:
 
 
 def _check_07(text: str) -> None:
-    # The held-out P12 mixtures (docs/mixing.md, the notebook's text): predicted at 15.56 mean CIEDE2000. Their 90%
-    # regions take the worst model error of the paints whose mixtures the fit was refitted without (converged
-    # folds): median radius about 31 (was ~63 when P12's posterior was unbounded), holding every row (44% when the
-    # folds stopped after 40 + 8 steps). Held to today's figures with a margin for float noise.
+    # The held-out P12 mixtures (docs/mixing.md, the notebook's text): predicted at 16.22 mean CIEDE2000 (15.56 with
+    # every band free in the refinement). Their 90% regions take the worst model error of the paints whose mixtures
+    # the fit was refitted without (converged folds): median radius about 30 (was ~63 when P12's posterior was
+    # unbounded), holding every row (44% when the folds stopped after 40 + 8 steps). Held to today's figures with a
+    # margin for float noise.
     got = ast.literal_eval(_find(r"held-out pairs: (\{[^}]*\})", text)[1])
-    assert got["rows"] == 32 and got["mean_de2000"] <= 16.0, got
+    assert got["rows"] == 32 and got["mean_de2000"] <= 16.8, got
     assert got["median_de2000_90"] <= 40.0, got  # informative: a region of ~60 says nothing
     assert got["held_by_90_regions"] >= 0.75, got
     errors = ast.literal_eval(_find(r"per axis\): (\{[^}]*\})", text)[1])
@@ -245,7 +246,7 @@ held-out P12 mixtures now: mean 90% radius 30.8
     "drift",
     [("'median_de2000_90': 30.648", "'median_de2000_90': 63.1"), ("log S 2.63", "log S 75.23"),
      ("'held_by_90_regions': 1.0", "'held_by_90_regions': 0.438"), ("'unmixed': 17.5195", "'unmixed': 7.4346"),
-     ("'mean_de2000': 15.564", "'mean_de2000': 16.5"), ("1. P4+P12", "1. P12"), ("after it 13.8", "after it 29.0")],
+     ("'mean_de2000': 15.564", "'mean_de2000': 17.5"), ("1. P4+P12", "1. P12"), ("after it 13.8", "after it 29.0")],
 )
 def test_notebook_7_checks_fail_on_vacuous_or_overconfident_regions(drift):
     """Regions of ~60 that hold every held-out row (notebook 7, then notebook 6, before its posterior was bounded by each paint's own

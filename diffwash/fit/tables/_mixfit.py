@@ -90,6 +90,8 @@ class MixModel:
       CIEDE2000 residuals with a ridge of weight `ridge` towards its spectra: `diffwash.fit.tables._seen`) or
       `"spectral"` (log reflectance only). RGB tables are always fitted in CIEDE2000.
     - `ridge`: the refinement's pull towards the spectral fit (CIEDE2000 units per unit log K or log S).
+    - `refine_spacing`: the refinement moves the spectra only by sums of Gaussian bumps about this many nm apart
+      (`diffwash.fit.tables._seen.smooth_basis`); 0: every band free (spiky spectra; docs/mixing.md).
     - `pairs`: spectral tables: after the pigments, fit `diffwash.mixing.PairTerms` for every pair the table
       measured mixed (`diffwash.fit.tables._pairs`), used for those pairs only; other pairs keep Duncan's law.
     - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter).
@@ -108,6 +110,7 @@ class MixModel:
     own: bool = False
     loss: str = "de2000"
     ridge: float = 3.0
+    refine_spacing: float = 50.0
     pairs: bool = True
     pair_ridge: float = _pairs.PAIR_RIDGE
     scatter_spread: float = _priors.SCATTER_SPREAD
@@ -116,7 +119,8 @@ class MixModel:
 
     def describe(self) -> dict[str, Any]:
         return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
-                "own": self.own, "loss": self.loss, "ridge": self.ridge, "pairs": self.pairs,
+                "own": self.own, "loss": self.loss, "ridge": self.ridge, "refine_spacing": self.refine_spacing,
+                "pairs": self.pairs,
                 "pair_ridge": self.pair_ridge, "scatter_spread": self.scatter_spread,
                 "gamma_spread": self.gamma_spread, "one_amount": self.one_amount}  # fmt: skip
 
@@ -321,6 +325,12 @@ def _shared_start(band0, priors: _priors.TablePriors, P: int, model: MixModel):
     return jnp.asarray(np.concatenate([log_gamma0, np.zeros(P), [-3.0], levels]), band0.dtype)
 
 
+def _refine_basis(obs: spectral.Observation, model: MixModel, dtype):
+    """The CIEDE2000 refinement's smooth basis over the table's bands (`MixModel.refine_spacing`), or None."""
+    phi = _seen.smooth_basis(obs.wavelengths, model.refine_spacing)
+    return None if phi is None else jnp.asarray(phi, dtype)
+
+
 def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol: float, obs: spectral.Observation,
                   say: Callable[[str], None] = lambda msg: None):  # fmt: skip
     A, G = _dense(m, names)
@@ -346,7 +356,7 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
         say("CIEDE2000 refinement")
         y, ok, more = _seen.refine_in_de2000(reflect, obs.lab, obs.lab(Y), y, ridge=model.ridge,
                                              shared_prior=_SharedPrior(P, model, priors), max_steps=max_steps,
-                                             rtol=max(rtol, 1e-5))  # fmt: skip
+                                             rtol=max(rtol, 1e-5), basis=_refine_basis(obs, model, dtype))  # fmt: skip
         steps += more
     band, shared = _pin_amount_laws(y, priors, P, model)
     gam, w, k2 = _shared(shared, P, model)
@@ -618,7 +628,7 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
         F, diag = _theta_padded(F, diag, int(band.shape[0]), P)
     from_prior = _from_priors(priors, F, diag, sigma, int(band.shape[0]), P, model)
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(measured_lab(m, obs), dtype), band, float(model.ridge),
-                        _SharedPrior(P, model, priors))  # fmt: skip
+                        _SharedPrior(P, model, priors), None, _refine_basis(obs, model, dtype))  # fmt: skip
     start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
     refit = lambda folds, what, **steps: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
                                                                    rtol=1e-7 if dtype == jnp.float64 else 1e-4,

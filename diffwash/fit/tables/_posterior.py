@@ -130,7 +130,7 @@ def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray],
         sol = optx.least_squares(fold, solver, start, max_steps=steps, throw=False)
         y, _, _ = _seen.refine_in_de2000(pb.reflect, pb.lab_of, pb.lab_target, sol.value, ridge=pb.ridge,
                                          shared_prior=pb.shared_prior, max_steps=refine_steps,
-                                         rtol=max(rtol, 1e-5), weights=w)  # fmt: skip
+                                         rtol=max(rtol, 1e-5), weights=w, basis=pb.basis)  # fmt: skip
         return np.asarray(pb.lab_of(pb.reflect(*y)), np.float64)[test]
 
     out = []

@@ -14,9 +14,10 @@ from nbclient import NotebookClient
 
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 BUDGET_S = 60  # per notebook on a 2-core CPU (the issue's limit)
-# Beside another pytest-xdist worker a notebook has one of the two cores: notebook 06 (a fit whose 90% regions
-# refit cross-validation folds) takes 49 s alone on 2 quiet cores and 64 s beside another worker in CI.
-SHARED_BUDGET_S = 80
+# Beside another pytest-xdist worker a notebook has one of the two cores: notebook 06 (the whole NTU table's fit,
+# whose 90% regions refit four cross-validation folds) takes 45-53 s alone on 2 cores and 79 s beside another
+# worker in a fresh-clone CI run (2026-11-26); the 60 s of the issue is the quiet figure.
+SHARED_BUDGET_S = 110
 
 
 def _widget_outputs(nb) -> list[dict]:

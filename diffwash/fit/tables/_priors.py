@@ -42,8 +42,9 @@ docs/mixing.md ("One amount per paint").
 **The explicit spreads** (`MixModel(scatter_spread=..., gamma_spread=...)`, every pigment of the table, off by
 default: spreads 0; measured with every band free in the refinement): on notebook 07's example (NTU P1, P4, P7,
 P12 with P1+P12 and P12+P7 held out, 32 rows) the held-out mean CIEDE2000 was 15.56 without them, 15.39 with
-spreads (1.0, 0.3), 15.43 with (0.5, 0.2), 14.88 with (0.1, 0.3) and 12.44 with (0.03, 0.1) (the training rows' mean went from 1.19 to 1.32): P12's log S
-rose from -9.1 to -2.4 and its exponent from 0.14 to 0.26, but its mixtures stay far off, because what the
+spreads (1.0, 0.3), 15.43 with (0.5, 0.2), 14.88 with (0.1, 0.3) and 12.44 with (0.03, 0.1) (the training
+rows' mean went from 1.19 to 1.32): P12's log S rose from -9.1 to -2.4 and its exponent from 0.14 to 0.26, but
+its mixtures stay far off, because what the
 held-out rows need (how P12 mixes) is not what the priors constrain. On a noise-free generated table they bias
 the recovered pigments (mean CIEDE2000 0.05 -> 0.10).
 """

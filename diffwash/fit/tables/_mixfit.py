@@ -628,7 +628,7 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
         F, diag = _theta_padded(F, diag, int(band.shape[0]), P)
     from_prior = _from_priors(priors, F, diag, sigma, int(band.shape[0]), P, model)
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(measured_lab(m, obs), dtype), band, float(model.ridge),
-                        _SharedPrior(P, model, priors), None, _refine_basis(obs, model, dtype))  # fmt: skip
+                        _SharedPrior(P, model, priors), basis=_refine_basis(obs, model, dtype))  # fmt: skip
     start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
     refit = lambda folds, what, **steps: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
                                                                    rtol=1e-7 if dtype == jnp.float64 else 1e-4,

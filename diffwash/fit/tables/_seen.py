@@ -195,12 +195,12 @@ def refine_in_de2000(
     """
     band0 = y0[0]
     w = jnp.ones(lab_target.shape[0], band0.dtype) if weights is None else jnp.asarray(weights, band0.dtype)
-    pb = _Problem(reflect, lab_of, jnp.asarray(lab_target), band0, float(ridge), shared_prior, w, basis)
-    loss = lambda y: _loss(pb, y)  # noqa: E731
     phi = None if basis is None else jnp.asarray(basis, band0.dtype)
+    pb = _Problem(reflect, lab_of, jnp.asarray(lab_target), band0, float(ridge), shared_prior, w, phi)
+    loss = lambda y: _loss(pb, y)  # noqa: E731
     n_band = band0.size if phi is None else phi.shape[1] * band0.shape[1]
-    rows = 3 * lab_target.shape[0] < n_band  # few rows, many band parameters: never form the square matrix
-    rows = rows and phi is None
+    # few rows, many free band parameters: never form the square matrix (a basis keeps it small: always formed)
+    rows = phi is None and 3 * lab_target.shape[0] < n_band
     state = lambda y: _jacobians(pb, y) if rows else _normal_equations(pb, y)  # noqa: E731
     to_band = (lambda d: d.reshape(band0.shape)) if phi is None else (  # noqa: E731
         lambda d: phi @ d.reshape(phi.shape[1], band0.shape[1]))

@@ -43,7 +43,7 @@ each pigment's $\log\gamma$: n = 2PB + P) as $F F^\top + \mathrm{diag}(d)$, `fac
 of pigments the table measured mixed (`seen`, listed), of the others (`unseen`) and, where the table has a paint it
 never measured mixed, of mixtures holding such a paint (`unmixed`; files written before have no such kind, and
 those rows get no region). A library without it
-(older files, swatch-card fits, `fit_mixtures(..., posterior=False)`) loads and predicts as before, its `de2000_90`
+(older files, `fit_mixtures(..., posterior=False)`) loads and predicts as before, its `de2000_90`
 None and `diffwash predict` writes no such column; a kind without a model error gets no region (NaN, an
 empty cell).
 

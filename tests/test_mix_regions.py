@@ -177,6 +177,12 @@ def test_the_pigment_report_names_what_the_rows_left_free_and_the_measurement_th
     assert "over black" in rep[1]["measure"] and "never measured mixed" in rep[1]["measure"]
     lines = _posterior.uncertainty_lines(rep)
     assert len(lines) == 3 and lines[2].startswith("    B: log K 0.10, log S 2.00")
+    # Already over black: not asked for again. From an RGB table: its spectrum is what would pin it.
+    dark = _posterior.pigment_report(np.zeros((n, 1)), diag, ("A", "B"), B, mixed={"A"}, over_dark={"B"})
+    assert "over black" not in dark[1]["measure"] and "never measured mixed" in dark[1]["measure"]
+    rgb = _posterior.pigment_report(np.zeros((n, 1)), diag, ("A", "B"), B, mixed={"A"}, over_dark={"B"}, spectral=False)
+    assert "over black" not in rgb[1]["measure"] and "spectrophotometer" in rgb[1]["measure"]
+    assert "spectrophotometer" not in rgb[0]["measure"]  # A's spectra were pinned; its amount law was not
 
 
 def test_a_fold_is_refitted_from_the_fits_start_not_pulled_towards_the_full_fit(tmp_path):

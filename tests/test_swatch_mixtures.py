@@ -90,6 +90,17 @@ def test_the_fit_predicts_a_mixture_it_did_not_see(fitted, card):
     pred = fitted.library.predict(["P1+P4"] * len(grounds), ["1+2"] * len(grounds), grounds)
     de = de2000(card.patch_colours[held], pred.linear_srgb)  # measured: 1.0 over paper, 1.7 over black
     assert de.max() < 3.0, de
+    # Its 90% regions hold it (measured: radii 2.5 and 2.4), and are no wider than a mixture's colour needs.
+    assert pred.de2000_90 is not None and np.all(de <= pred.de2000_90) and np.all(pred.de2000_90 < 8), pred.de2000_90
+
+
+def test_the_card_fit_says_what_its_patches_determined(fitted):
+    unc = fitted.library.fit["uncertainty"]
+    assert set(unc["model_error"]) == {"single", "seen", "unseen"}  # every pair is on the card: unseen by folds
+    assert "leave-pairs-out" in unc["unseen_from"]
+    for r in unc["pigments"]:  # every paint is on the card over black: not asked for again; three channels are
+        assert "over black" not in r["measure"], r
+        assert not {"absorption", "scattering"} & set(r["from_the_prior"]) or "spectrophotometer" in r["measure"], r
 
 
 def test_fit_swatches_sends_cards_of_several_pigments_to_the_joint_fit(card):
@@ -115,6 +126,7 @@ def test_fit_swatch_writes_a_library_that_predict_reads(card, run_cli, tmp_path)
     assert r.returncode == 0, r.stderr  # float32, as for a user
     assert "3 pigments (P1, P4, P10) from 22 patches (10 mixtures)" in r.stdout and "wrote lib.json" in r.stdout
     assert "P1+P4+P10  1+1+1  black" in r.stdout and (tmp_path / "report.png").stat().st_size > 10_000
+    assert "90% regions: model error" in r.stdout and "    P10: log K" in r.stdout, r.stdout
     fit = json.loads((tmp_path / "lib.json").read_text())["fit"]
     assert fit["converged"] and fit["mean_delta_e_2000"] < 1.5 and fit["layouts"] == ["card.json"]
     (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1+P4,1+2,paper\nP10+P4,2+1,black\n")
@@ -124,6 +136,7 @@ def test_fit_swatch_writes_a_library_that_predict_reads(card, run_cli, tmp_path)
         rows = list(csv.DictReader(f))
     rgb = np.array([[float(row[c]) for c in "rgb"] for row in rows])
     assert rgb.shape == (2, 3) and np.all(np.isfinite(rgb))
+    assert all(0 < float(row["de2000_90"]) < 10 for row in rows), rows  # the card's fit carries its regions
     held = held_out(card.layout) & np.array([p["ground"] == "paper" for p in card.layout["patches"]])
     truth = 255 * np.asarray(colorimetry.srgb_encode(card.patch_colours[held][0]))
     assert np.abs(rgb[0] - truth).max() < 12, (rgb[0], truth)

@@ -75,14 +75,7 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
     print(f"  Levenberg-Marquardt {status} in {fit.iterations} steps")
     for c in fit.convergence:
         print(f"  {c.describe()}")
-    unc = (fit.library.fit or {}).get("uncertainty")
-    if unc is not None:
-        errors = ", ".join(f"{k} {v:.2f}" for k, v in unc["model_error"].items())
-        print(f"  90% regions: model error (CIELAB units per axis) {errors}")
-        if str(unc.get("unmixed_from", "")).startswith("the prior"):
-            print(f"    unmixed: {unc['unmixed_from']}")
-        for line in diffwash.fit.uncertainty_lines(unc["pigments"]):
-            print(line)
+    print_uncertainty(fit.library)
     if not fit.converged and not args.allow_unconverged:
         far = "; ".join(c.describe() for c in fit.convergence if not c)
         raise FailureError(f"the fit did not converge ({far}); nothing was written (use --allow-unconverged to write "
@@ -102,3 +95,16 @@ def _stage_printer(t0: float):
     if not sys.stderr.isatty():
         return None
     return lambda stage: print(f"  {stage}... ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
+
+
+def print_uncertainty(lib) -> None:
+    """A library's 90% regions' model errors and, per pigment, what its rows determined (its fit's record)."""
+    unc = (lib.fit or {}).get("uncertainty")
+    if unc is None:
+        return
+    errors = ", ".join(f"{k} {v:.2f}" for k, v in unc["model_error"].items())
+    print(f"  90% regions: model error (CIELAB units per axis) {errors}")
+    if str(unc.get("unmixed_from", "")).startswith("the prior"):
+        print(f"    unmixed: {unc['unmixed_from']}")
+    for line in diffwash.fit.uncertainty_lines(unc["pigments"]):
+        print(line)

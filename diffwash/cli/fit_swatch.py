@@ -183,6 +183,7 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
     for c in fit.calibrations:
         for note in c.notes:
             print(f"  note: {note}")
+    _library_fit.print_uncertainty(fit.library)
     _finish(fit.converged, args.allow_unconverged, "the fit")
     with dio.atomic_paths(out, report) as (out_tmp, report_tmp):  # both files or neither
         fit.save(out_tmp)

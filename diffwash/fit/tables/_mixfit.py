@@ -662,10 +662,12 @@ def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: 
     a = _posterior.shrink_per_pigment(lambda a: draw(a, one), row_pigment, P, lab_m[one], pred.lab[one])
     F, diag = _posterior.scaled(F, diag, a, owner)
     scale, counts, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit)
+    dark = (An.sum(axis=1) > 0) & (Gn.mean(axis=1) < _priors.DARK)[:, None]  # (N, P): a paint over a dark ground
+    over_dark = {n for i, n in enumerate(names) if dark[:, i].any()}
+    report = _posterior.pigment_report(F, diag, names, B, {n for p in pairs(m) for n in p}, over_dark, m.spectral)
     record = {**record, "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
               "model_error": {k: round(v, 4) for k, v in scale.items()}, "rows": counts, **how,
-              "pigments": _mark_priors(_posterior.pigment_report(F, diag, names, B, {n for p in pairs(m) for n in p}),
-                                       from_prior)}  # fmt: skip
+              "pigments": _mark_priors(report, from_prior)}  # fmt: skip
     return _regions.Posterior(F, diag, scale, tuple(pairs(m)), record)
 
 
@@ -799,7 +801,7 @@ def _from_priors(priors: _priors.TablePriors, F, diag, sigma: float, B: int, P: 
 def _mark_priors(report: list[dict], from_prior: dict) -> list[dict]:
     """`_posterior.pigment_report` with what the priors decided named as such (`from_the_prior`, `priors`) and the
     measurement that would pin it (a second amount; the paint over black, or a tint with white)."""
-    need = {"amount law": "a second amount", "scattering": "the paint over black, or a tint with white"}
+    need = {"amount law": "a second amount", "scattering": _posterior.OVER_DARK}
     for i, held in from_prior.items():
         r = report[i]
         r["priors"] = held

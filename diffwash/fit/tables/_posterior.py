@@ -210,9 +210,13 @@ def shrink_per_pigment(draw, row_pigment: np.ndarray, P: int, lab_true: np.ndarr
 FREE_SD = 0.5
 
 
-def pigment_report(F: np.ndarray, diag: np.ndarray, names, B: int, mixed: set[str]) -> list[dict]:
+def pigment_report(F: np.ndarray, diag: np.ndarray, names, B: int, mixed: set[str], over_dark: set[str] = frozenset(),
+                   spectral: bool = True) -> list[dict]:  # fmt: skip
     """Per pigment: the posterior standard deviation of log K and log S (root mean square over the bands) and of
-    log gamma, what the measurements determined, and the measurement that would pin what they did not."""
+    log gamma, what the measurements determined, and the measurement that would pin what they did not: the paint
+    over black or tinted with white, unless it is in `over_dark` (measured over a dark ground already); for an RGB
+    table (`spectral` False), whose three channels leave most of each spectrum to the prior however the paint was
+    brushed, a spectrophotometer's reading."""
     sd = np.sqrt(np.sum(F * F, axis=1) + diag)
     P = len(names)
     out = []
@@ -223,7 +227,10 @@ def pigment_report(F: np.ndarray, diag: np.ndarray, names, B: int, mixed: set[st
         free = [what for what, v in (("absorption", k), ("scattering", s), ("amount law", g)) if v > FREE_SD]
         need = []
         if "scattering" in free or "absorption" in free:
-            need.append("the paint over black, or a tint with white")
+            if n not in over_dark:
+                need.append(OVER_DARK)
+            if not spectral:
+                need.append(SPECTRUM)
         if "amount law" in free:
             need.append("a second amount")
         if n not in mixed:
@@ -231,6 +238,12 @@ def pigment_report(F: np.ndarray, diag: np.ndarray, names, B: int, mixed: set[st
         out.append({"name": n, "sd_log_K": round(k, 4), "sd_log_S": round(s, 4), "sd_log_gamma": round(g, 4),
                     "from_the_prior": free, "measure": "; ".join(need)})  # fmt: skip
     return out
+
+
+#: The measurement that tells a paint's absorption from its scattering.
+OVER_DARK = "the paint over black, or a tint with white"
+#: The measurement an RGB table lacks to fix a paint's spectra.
+SPECTRUM = "its reflectance spectrum (a spectrophotometer's reading: three channels leave most of it to the prior)"
 
 
 def uncertainty_lines(report: list[dict]) -> list[str]:

@@ -1,6 +1,6 @@
 """One amount per paint over two light grounds: predict mixtures never seen, against simple averages.
 
-    python benchmarks/bench_oneamount.py [--seeds 0,1,2] [--only generated,ntu] [--paints 40]
+    python benchmarks/bench_oneamount.py [--seeds 0,1,2] [--only generated,ntu] [--paints 40] [--scatter 0]
 
 The question of issue 20: a colour scientist measures another maker's paints, each brushed once over each of
 two light grounds (the grounds measured bare), and wants the colours of mixtures of pairs and triples. This
@@ -36,6 +36,8 @@ paints' single layers over the same ground as the mixture:
      measured through the same physics: each layer of its own uneven thickness, the top paint's surface, noise.
      No stack is in the table either; the simple peers have no stack rule, so the stacks' line compares with
      the top paint's own layer over the ground (what one sees if the lower layer is ignored) instead.
+   - `--scatter S` shifts every made paint's log S by S: -2 a maker of transparent paint (inks, dye-based
+     watercolour), +1 of opaque paint (gouache); 0, the default, is the table above.
 
 2. `ntu` (real paint, the NTU watercolours, one ground only): each of the 13 paints once, at 0.06 mL over paper,
    is the whole table; held out, every two-paint mixture of the table whose total is 0.06 mL (198 rows, 62 pairs),
@@ -127,8 +129,9 @@ def ntu_paints():
     return m.wavelengths, out, paper
 
 
-def maker(rng, n_paints: int):
-    """The other maker's paints on WL: dict name -> (K, S, thickness, k1, k2); and the two grounds."""
+def maker(rng, n_paints: int, scatter: float = 0.0):
+    """The other maker's paints on WL: dict name -> (K, S, thickness, k1, k2); and the two grounds. `scatter`
+    shifts every made paint's log S (negative: a maker of transparent inks; positive: of opaque gouache)."""
     wl, base, paper = ntu_paints()
     names = list(base)
     paints = {}
@@ -137,7 +140,7 @@ def maker(rng, n_paints: int):
         K0, S0 = base[names[i % len(names)]]
         shift = rng.uniform(-25, 25)
         K = np.exp(np.interp(WL - shift, wl, np.log(K0)) + rng.normal(0, 0.3))
-        S = np.exp(np.interp(WL - shift, wl, np.log(S0)) + rng.normal(0, 1.0) + rng.normal(0, 0.3) * (x - 0.5))
+        S = np.exp(np.interp(WL - shift, wl, np.log(S0)) + rng.normal(scatter, 1.0) + rng.normal(0, 0.3) * (x - 0.5))
         paints[f"M{i + 1}"] = [np.clip(K, 1e-4, 1e3), np.clip(S, 1e-4, 1e3), np.exp(rng.uniform(np.log(0.6), np.log(2.5)))]
     paints["white1"] = [0.03 + 0.1 * np.exp(-(((WL - 400) / 30) ** 2)), np.full(len(WL), 6.0) * (1.2 - 0.4 * x), 1.0]
     paints["white2"] = [np.full(len(WL), 0.05), np.full(len(WL), 2.5), 1.0]
@@ -181,10 +184,10 @@ def stacked(paints, bottom: str, top: str, ground, rng, uneven=0.25):
     return np.clip(R, 1e-3, 1.0)
 
 
-def generated_case(seed: int, n_paints: int):
+def generated_case(seed: int, n_paints: int, scatter: float = 0.0):
     """The table (list of rows) and the held-out queries of one seed (module docstring)."""
     rng = np.random.default_rng(seed)
-    paints, grounds = maker(rng, n_paints)
+    paints, grounds = maker(rng, n_paints, scatter)
     names = list(paints)
     inter = {}
     for i, a in enumerate(names):
@@ -308,10 +311,11 @@ def _coverage(lib, rows, truth, pred) -> tuple[str, float]:
     return f"{100 * np.mean(de[ok] <= pred.de2000_90[ok]):.1f}% ({np.median(pred.de2000_90[ok]):.1f})", s90
 
 
-def generated(seeds, n_paints: int) -> None:
+def generated(seeds, n_paints: int, scatter: float = 0.0) -> None:
     for seed in seeds:
-        table, queries, stacks = generated_case(seed, n_paints)
-        score(table, WL, queries, lambda f: "+".join(f"{x:.4f}" for x in f), f"Generated, seed {seed}", stacks)
+        table, queries, stacks = generated_case(seed, n_paints, scatter)
+        label = f"Generated, seed {seed}" + (f", log S shifted by {scatter:+g}" if scatter else "")
+        score(table, WL, queries, lambda f: "+".join(f"{x:.4f}" for x in f), label, stacks)
 
 
 def ntu() -> None:
@@ -331,10 +335,12 @@ def main() -> None:
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--paints", type=int, default=40)
     ap.add_argument("--only", default="generated,ntu")
+    ap.add_argument("--scatter", type=float, default=0.0,
+                    help="shift of the generated paints' log S: -2 a maker of transparent inks, +1 of gouache")
     args = ap.parse_args()
     only = args.only.split(",")
     if "generated" in only:
-        generated([int(s) for s in args.seeds.split(",")], args.paints)
+        generated([int(s) for s in args.seeds.split(",")], args.paints, args.scatter)
     if "ntu" in only:
         ntu()
 

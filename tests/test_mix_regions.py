@@ -252,6 +252,13 @@ def test_a_paints_folds_run_as_far_as_the_fit_and_pair_folds_stay_capped(tmp_pat
     assert _posterior.PAINT_FOLD_STEPS >= 400 and _posterior.PAINT_FOLD_REFINE_STEPS >= 100
     assert steps.get("leave-pairs-out", {}) == {}
     assert rows["unmixed"] > 0 and scale["unmixed"] > 0
+    # A seen row's error is the one it has when left out of its pair's terms, where that is given: the fit's own
+    # rows here are exact (lab against lab), so without it the seen pairs would need no model error at all.
+    assert scale["seen"] == 0.0 and "seen_from" not in how
+    held = np.where(kind == "seen", 3.0, np.nan)
+    scale2, _, how2 = _mixfit._model_errors(m, kind, lab, lab, np.zeros((8, len(m), 3)), refit, held)
+    assert scale2["seen"] > 1.0 and "left out of its pair's terms" in how2["seen_from"]
+    assert scale2["single"] == scale["single"] and scale2["unseen"] == scale["unseen"]
 
 
 def test_an_rgb_tables_fit_carries_regions_from_its_own_posterior_and_folds(tmp_path):

@@ -556,6 +556,7 @@ def fit_mixtures(
     t0 = time.perf_counter()
     say = progress if progress is not None else (lambda msg: None)
     names = m.names
+    held_seen = None
     if rtol is None:  # RGB: see RGB_RTOL
         rtol = 1e-7 if jnp.zeros(()).dtype == jnp.float64 else (1e-4 if m.spectral else RGB_RTOL)
     if m.spectral:
@@ -574,10 +575,13 @@ def fit_mixtures(
         one, A1 = _one_layer(A)
         if n_pairs := len(pairs(m)):
             say(f"pair terms ({n_pairs} pairs)")
-        terms, pairs_ok = _pairs.fit_pair_terms(palette, A1, G[one], measured_lab(m, obs)[one], obs.lab, k2,
-                                                ridge=model.pair_ridge)  # fmt: skip
+        lab1 = measured_lab(m, obs)[one]
+        terms, pairs_ok = _pairs.fit_pair_terms(palette, A1, G[one], lab1, obs.lab, k2, ridge=model.pair_ridge)
         palette = eqx.tree_at(lambda p: p.pairs, palette, terms, is_leaf=lambda x: x is None)
         stages.append(pairs_ok)
+        if posterior and terms is not None:  # how well the terms predict their pairs elsewhere (`_model_errors`)
+            held_seen = np.full(len(m), np.nan)
+            held_seen[one] = _pairs.held_out_de2000(palette, A1, G[one], lab1, obs.lab, k2, ridge=model.pair_ridge)
     ok = all(bool(c) for c in stages)
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2)
     de, de_ab = residuals(lib, m)
@@ -592,7 +596,7 @@ def fit_mixtures(
     post = None
     if posterior and m.spectral and model.loss == "de2000":
         say("posterior")
-        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib, say)
+        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib, say, held_seen)
         record["uncertainty"] = post.record
     elif posterior and not m.spectral:
         say("posterior")
@@ -603,9 +607,10 @@ def fit_mixtures(
 
 
 def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library,
-                        say: Callable[[str], None] = lambda msg: None):  # fmt: skip
+                        say: Callable[[str], None] = lambda msg: None, held_seen: np.ndarray | None = None):  # fmt: skip
     """The fit's `_regions.Posterior`: Laplace covariance from the spectral stage's problem, each pigment's block
-    bounded by its own rows, and the model error of each kind of row (`_model_errors`)."""
+    bounded by its own rows, and the model error of each kind of row (`_model_errors`; `held_seen`: each row's
+    CIEDE2000 with it left out of its pair's terms, `_pairs.held_out_de2000`)."""
     P = len(names)
     dtype = jnp.zeros(()).dtype
     A, G = _dense(m, names)
@@ -635,11 +640,11 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
                                                                    progress=lambda i, n: say(f"{what} fold {i}/{n}"),
                                                                    **steps)  # fmt: skip
     return _regions_of(m, names, (F, diag, sigma), from_prior, palette, k2, obs, lib, (np.asarray(A), np.asarray(G)),
-                       refit, {"noise_log_reflectance": round(sigma, 6)})  # fmt: skip
+                       refit, {"noise_log_reflectance": round(sigma, 6)}, held_seen)  # fmt: skip
 
 
 def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: float, obs, lib: Library, rows,
-                refit, record: dict) -> _regions.Posterior:  # fmt: skip
+                refit, record: dict, held_seen: np.ndarray | None = None) -> _regions.Posterior:  # fmt: skip
     """A fit's `_regions.Posterior` from its Laplace covariance `laplace` = (factor, diagonal, sigma) over theta:
     each pigment's block bounded by its own single rows (`_posterior.shrink_per_pigment`), and the model error of
     each kind of row (`_model_errors`, its folds refitted by `refit`); `rows` = (A, G): the rows' layer amounts
@@ -661,7 +666,7 @@ def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: 
     row_pigment = np.array([index[p[0]] for p, k in zip(m.pigments, kind) if k == "single"], int)
     a = _posterior.shrink_per_pigment(lambda a: draw(a, one), row_pigment, P, lab_m[one], pred.lab[one])
     F, diag = _posterior.scaled(F, diag, a, owner)
-    scale, counts, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit)
+    scale, counts, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit, held_seen)
     dark = (An.sum(axis=1) > 0) & (Gn.mean(axis=1) < _priors.DARK)[:, None]  # (N, P): a paint over a dark ground
     over_dark = {n for i, n in enumerate(names) if dark[:, i].any()}
     report = _posterior.pigment_report(F, diag, names, B, {n for p in pairs(m) for n in p}, over_dark, m.spectral)
@@ -727,8 +732,10 @@ def _rgb_laplace(fit: "_RGBFit", n_rows: int, P: int, gamma: bool, rank: int = _
     return (*_posterior.factored(M @ cov @ M.T, rank), float(np.sqrt(sigma2)))
 
 
-def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
-    """The model error of each kind of row (`_regions.KINDS`): of the table's own rows for `single` and `seen`;
+def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit, held_seen: np.ndarray | None = None):
+    """The model error of each kind of row (`_regions.KINDS`): of the table's own rows for `single` and `seen`
+    (a `seen` row whose pair has fitted terms with its CIEDE2000 left out of them, `held_seen`, where given: a
+    pair's terms reproduce the few rows they were fitted to, which says nothing of its other amounts);
     for `unseen`, of the held-out rows of leave-pairs-out folds, and for `unmixed`, of folds that hold out every
     mixture of one paint (only where the table has a paint it never mixed: else no row can be of that kind), the
     largest of the folds' (a paint's mixtures are mispredicted together, and paints differ: the error that holds
@@ -739,8 +746,15 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit):
     for k in ("single", "seen"):
         sel = kind == k
         rows[k] = int(sel.sum())
-        if sel.any():
-            scale[k] = _posterior.calibrate_scale(lab_m[sel], lab_p[sel], spread[:, sel])
+        if not sel.any():
+            continue
+        de = None
+        if k == "seen" and held_seen is not None and np.isfinite(held_seen[sel]).any():
+            own = np.asarray(colorimetry.delta_e_2000(jnp.asarray(lab_m[sel]), jnp.asarray(lab_p[sel])), np.float64)
+            de = np.where(np.isfinite(held_seen[sel]), held_seen[sel], own)
+            how["seen_from"] = ("each two-pigment row left out of its pair's terms (closed form at the fit's Gauss-Newton "
+                                "matrix); other rows in the fit")  # fmt: skip
+        scale[k] = _posterior.calibrate_scale(lab_m[sel], lab_p[sel], spread[:, sel], de=de)
     converged = {"steps": _posterior.PAINT_FOLD_STEPS, "refine_steps": _posterior.PAINT_FOLD_REFINE_STEPS}
     for k, folds, what, steps in (("unseen", [t for _, t in pair_folds(m)], "leave-pairs-out", {}),
                                   ("unmixed", paint_folds(m), "leave-one-paint's-mixtures-out", converged)):  # fmt: skip

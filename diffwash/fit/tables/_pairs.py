@@ -29,7 +29,7 @@ from ... import colorimetry, mixing
 from ..._schema import PAIR_AMOUNT_MAX, PAIR_BUMP_MAX
 from .._bandlsq import GN_TOL, Convergence, loss_floor, newton_decrement
 
-__all__ = ["fit_pair_terms", "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
+__all__ = ["fit_pair_terms", "held_out_de2000", "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
 
 #: Gaussian bumps per spectral scale (over the palette's band grid).
 PAIR_BUMPS = 4
@@ -58,12 +58,17 @@ def _terms(theta: Array, members, n: int, centres, width, wavelengths) -> mixing
                             s_amount=t[:, 2 * n + 1], centres=centres, width=width, wavelengths=wavelengths)
 
 
-def _pack(pairs, A, G, lab):
-    """Per pair: its rows' two amounts, grounds and target colours, padded to the largest pair (with a mask)."""
+def _rows(pairs, A):
+    """Per pair, its rows' indices padded to the largest pair's count (Q, R), and which are real (Q, R)."""
     rows = [np.flatnonzero((A[:, i] > 0) & (A[:, j] > 0) & ((A > 0).sum(axis=1) == 2)) for i, j in pairs]
     R = max(len(r) for r in rows)
     idx = np.stack([np.pad(r, (0, R - len(r)), mode="edge") for r in rows])
-    mask = np.stack([np.arange(R) < len(r) for r in rows])
+    return idx, np.stack([np.arange(R) < len(r) for r in rows])
+
+
+def _pack(pairs, A, G, lab):
+    """Per pair: its rows' two amounts, grounds and target colours, padded to the largest pair (with a mask)."""
+    idx, mask = _rows(pairs, A)
     ij = np.asarray(pairs)
     A2 = np.stack([A[idx, ij[:, :1]], A[idx, ij[:, 1:]]], axis=-1)
     return A2, G[idx], lab[idx], mask
@@ -98,24 +103,48 @@ def _lm(residuals: Callable[[Array], Array], theta0: Array, steps: int) -> tuple
     return th, (gain < 1e-4) | (mu > 1e8) | (dec <= GN_TOL), dec
 
 
+def _pair_residuals(lab_of, reference: float, k2, wavelengths, bumps: int, K, S, gam, w, A2, G2, lab2, mask):
+    """One pair's rows' CIEDE2000 residuals (R, 3) as a function of its terms' parameters (0 on padding rows)."""
+    centres, width = _basis(wavelengths, bumps)
+    law = mixing.AmountLaw(gamma=gam, reference=reference)
+
+    def rows(theta):
+        terms = _terms(theta, ((0, 1),), bumps, centres, width, wavelengths)
+        R = mixing.reflectance(K, S, A2, G2, law, w, k2, terms)
+        return jnp.where(mask[:, None], colorimetry.delta_e_2000_residuals(lab2, lab_of(R)), 0)
+
+    return rows
+
+
 @eqx.filter_jit
 def _fit_pairs(lab_of, reference: float, k2, wavelengths, bumps: int, ridge: float, steps: int, K, S, gam, w, A2, G2, lab2, mask):
     """Every pair's terms at once (`jax.vmap` over the leading axis of `K` ... `mask`). Module-level, with the
     data as arguments: a later fit of the same shapes finds it compiled."""
-    centres, width = _basis(wavelengths, bumps)
 
     def one(K, S, gam, w, A2, G2, lab2, mask):
-        law = mixing.AmountLaw(gamma=gam, reference=reference)
-
-        def residuals(theta):
-            terms = _terms(theta, ((0, 1),), bumps, centres, width, wavelengths)
-            R = mixing.reflectance(K, S, A2, G2, law, w, k2, terms)
-            r = jnp.where(mask[:, None], colorimetry.delta_e_2000_residuals(lab2, lab_of(R)), 0)
-            return jnp.concatenate([r.ravel(), ridge * theta])
-
-        return _lm(residuals, jnp.zeros(2 * bumps + 2, K.dtype), steps)
+        rows = _pair_residuals(lab_of, reference, k2, wavelengths, bumps, K, S, gam, w, A2, G2, lab2, mask)
+        return _lm(lambda theta: jnp.concatenate([rows(theta).ravel(), ridge * theta]),
+                   jnp.zeros(2 * bumps + 2, K.dtype), steps)  # fmt: skip
 
     return jax.vmap(one)(K, S, gam, w, A2, G2, lab2, mask)
+
+
+@eqx.filter_jit
+def _loo_pairs(lab_of, reference: float, k2, wavelengths, bumps: int, ridge: float, K, S, gam, w, A2, G2, lab2, mask,
+               theta):  # fmt: skip
+    """Every pair's rows' leave-one-row-out CIEDE2000 (Q, R), linearised at the fitted `theta` (Q, 2n + 2)."""
+
+    def one(K, S, gam, w, A2, G2, lab2, mask, theta):
+        rows = _pair_residuals(lab_of, reference, k2, wavelengths, bumps, K, S, gam, w, A2, G2, lab2, mask)
+        r, J = rows(theta), jax.jacfwd(rows)(theta)  # (R, 3), (R, 3, n)
+        n = theta.shape[0]
+        Jf = J.reshape(-1, n)
+        H = Jf.T @ Jf + ridge**2 * jnp.eye(n, dtype=Jf.dtype)
+        hat = jnp.einsum("rkn,rln->rkl", J, jnp.linalg.solve(H, Jf.T).T.reshape(J.shape))  # J_i H^-1 J_i^T
+        e = jnp.linalg.solve(jnp.eye(3, dtype=r.dtype) - hat, r[..., None])[..., 0]
+        return jnp.linalg.norm(e, axis=-1)
+
+    return jax.vmap(one)(K, S, gam, w, A2, G2, lab2, mask, theta)
 
 
 def fit_pair_terms(
@@ -167,3 +196,41 @@ def fit_pair_terms(
     worst = int(np.argmax(np.where(np.asarray(done), -np.inf, dec)))
     stage = f"pair terms ({len(pairs)} pairs; the farthest from a minimum: {palette.names[ij[worst, 0]]}+{palette.names[ij[worst, 1]]})"
     return terms, Convergence(converged=False, steps=steps, decrement=float(dec[worst]), stage=stage)
+
+
+def held_out_de2000(
+    palette: mixing.Palette,
+    A: Float[np.ndarray, "n p"],
+    G: Float[np.ndarray, "n b"],
+    lab_target: Float[np.ndarray, "n 3"],
+    lab_of: Callable[[Array], Array],
+    k2: float = 0.0,
+    *,
+    ridge: float = PAIR_RIDGE,
+) -> np.ndarray:
+    r"""Each two-pigment row's CIEDE2000 as predicted by its pair's terms fitted without it (N,): NaN for the others.
+
+    A pair's terms have $2n + 2$ parameters, so a pair measured in a row or two reproduces those rows whatever
+    its other amounts do: its rows' own residuals say little of how well the terms predict the pair elsewhere.
+    Leaving each row out (the pigments kept, as they serve every pair) says that. It is the closed form of least
+    squares, at the fit's Gauss-Newton matrix $H = J^	op J + \lambda^2 I$ (the ridge $\lambda$ included): row
+    $i$'s residuals $r_i$ with it left out are $(I - J_i H^{-1} J_i^	op)^{-1} r_i$. A pair of one row is then
+    predicted from the ridge alone, which is Duncan's law, as it should be.
+    """
+    terms = palette.pairs
+    out = np.full(len(A), np.nan)
+    if terms is None or not terms.members:
+        return out
+    pairs = [tuple(int(x) for x in p) for p in terms.members]
+    dtype = jnp.asarray(terms.k_bumps).dtype
+    idx, mask = _rows(pairs, np.asarray(A))
+    A2, G2, lab2, _ = (jnp.asarray(x, dtype) for x in _pack(pairs, np.asarray(A), np.asarray(G), np.asarray(lab_target)))
+    ij = np.asarray(pairs)
+    K, S = jnp.asarray(palette.K, dtype)[ij], jnp.asarray(palette.S, dtype)[ij]
+    gam, w = jnp.asarray(palette.law.gamma, dtype)[ij], jnp.asarray(palette.weights, dtype)[ij]
+    theta = jnp.concatenate([terms.k_bumps, terms.s_bumps, terms.k_amount[:, None], terms.s_amount[:, None]], 1)
+    de = _loo_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, terms.k_bumps.shape[1],
+                    ridge, K, S, gam, w, A2, G2, lab2, jnp.asarray(mask), theta.astype(dtype))  # fmt: skip
+    de = np.asarray(de, np.float64)
+    out[idx[mask]] = de[mask]
+    return out

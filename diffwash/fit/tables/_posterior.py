@@ -141,12 +141,15 @@ def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray],
     return out
 
 
-def calibrate_scale(lab_true: np.ndarray, lab_pred: np.ndarray, spread: np.ndarray, level: float = _regions.LEVEL) -> float:
+def calibrate_scale(lab_true: np.ndarray, lab_pred: np.ndarray, spread: np.ndarray, level: float = _regions.LEVEL,
+                    de: np.ndarray | None = None) -> float:  # fmt: skip
     """The smallest model error s (CIELAB units per axis) whose regions (`_regions.radius90` with the parameter
-    draws' `spread`) hold `level` of the rows."""
+    draws' `spread`) hold `level` of the rows; `de`: the rows' CIEDE2000 errors, where not `lab_pred`'s (a row's
+    error when it is left out of the fit)."""
     if len(lab_true) == 0:
         return float("nan")
-    de = np.asarray(colorimetry.delta_e_2000(jnp.asarray(lab_true), jnp.asarray(lab_pred)), np.float64)
+    if de is None:
+        de = np.asarray(colorimetry.delta_e_2000(jnp.asarray(lab_true), jnp.asarray(lab_pred)), np.float64)
 
     def held(s):
         return np.mean(de <= _regions.radius90(lab_pred, spread, np.full(len(de), s), level=level))

@@ -5,7 +5,9 @@
 The NTU spectral table's seven paints that were measured mixed in all 21 of their pairs (P1, P3, P5, P7, P9,
 P10, P13), on a 20 nm grid (21 bands, to keep each refit cheap). Per seed the 21 pairs are shuffled:
 
-- **queries**: 6 pairs held out, 4 rows of each (24 rows): never measured, never candidates;
+- **queries**: 6 pairs held out, 4 rows of each (24 rows): never measured, never candidates (with `--related N`,
+  N more rows of each query pair, at other amounts than its queries', are candidates: the pairs one wants to
+  predict may be painted at other amounts, as a user planning swatches would);
 - **start**: every paint alone at amounts 0.02, 0.05 and 0.1 (21 rows; `--single-amounts` to change) and 2 rows
   of each of 3 pairs;
 - **candidates**: 4 rows of each of the other 12 pairs and the start pairs' other 2 rows each (54 rows), their
@@ -54,7 +56,12 @@ def load() -> measurements.Measurements:
                    grounds={k: v[bi] for k, v in m.grounds.items()})  # fmt: skip
 
 
-def split(m: measurements.Measurements, seed: int, single_amounts=SINGLE_AMOUNTS) -> dict[str, np.ndarray]:
+def _mixture(m: measurements.Measurements, i: int) -> frozenset:
+    """Row `i`'s pigments with their amounts (`A+B` at a+b and `B+A` at b+a are the same swatch)."""
+    return frozenset((p, round(a, 6)) for p, a in zip(m.pigments[i], m.amounts[i]))
+
+
+def split(m: measurements.Measurements, seed: int, single_amounts=SINGLE_AMOUNTS, related: int = 0) -> dict[str, np.ndarray]:
     """Row indices of the start table, the candidates and the queries (module docstring)."""
     rng = np.random.default_rng(seed)
     key = [tuple(sorted(set(p))) for p in m.pigments]
@@ -68,6 +75,14 @@ def split(m: measurements.Measurements, seed: int, single_amounts=SINGLE_AMOUNTS
     rows = {q: rng.permutation([i for i, k in enumerate(key) if k == q])[:ROWS_PER_PAIR] for q in order}
     query = np.concatenate([rows[q] for q in order[:QUERY_PAIRS]])
     cand = []
+    for q in order[:QUERY_PAIRS]:  # the query pairs at other amounts (none of them the same swatch as a query)
+        asked = {_mixture(m, i) for i in rows[q]}
+        other, seen = [], set(asked)
+        for i in rng.permutation([i for i, k in enumerate(key) if k == q]):
+            if _mixture(m, int(i)) not in seen:
+                seen.add(_mixture(m, int(i)))
+                other.append(int(i))
+        cand += other[:related]
     for j, q in enumerate(order[QUERY_PAIRS:]):
         if j < START_PAIRS:
             start += list(rows[q][:START_ROWS])
@@ -147,6 +162,8 @@ def main() -> None:
     ap.add_argument("--per-round", type=int, default=2)
     ap.add_argument("--single-amounts", type=float, nargs="+", default=list(SINGLE_AMOUNTS),
                     help="the amounts each paint is measured alone at in the start table")  # fmt: skip
+    ap.add_argument("--related", type=int, default=0,
+                    help="rows of each query pair, at other amounts than the queries', among the candidates")
     ap.add_argument("--json", default=None, help="write every round's numbers here")
     ap.add_argument("--table-from", default=None, metavar="JSON", help="print the tables of an earlier --json, run nothing")
     args = ap.parse_args()
@@ -159,13 +176,14 @@ def main() -> None:
     m = load()
     results = []
     for seed in args.seeds:
-        parts = split(m, seed, args.single_amounts)
+        parts = split(m, seed, args.single_amounts, args.related)
         for strategy in ("suggest", "random"):
             results += run_strategy(m, parts, strategy, seed, args.rounds, args.per_round)
             if args.json:  # as it goes: a long run that stops keeps what it measured
                 Path(args.json).write_text(json.dumps(results, indent=1))
     print(f"NTU WPSM, 7 paints, 21 bands; seeds {args.seeds}; alone at {args.single_amounts}; {args.per_round} rows measured per round; "
-          f"{len(parts['queries'])} query rows of {QUERY_PAIRS} pairs never measured; {len(parts['candidates'])} candidates\n")
+          f"{len(parts['queries'])} query rows of {QUERY_PAIRS} pairs never measured; {len(parts['candidates'])} candidates"
+          f" ({args.related} rows of each query pair at other amounts among them)\n")
     print(table(results, args.rounds))
     print(f"\nwall {time.perf_counter() - t0:.0f} s; mean refit {np.mean([x['fit_s'] for x in results]):.1f} s")
 

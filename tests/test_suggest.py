@@ -189,3 +189,32 @@ def test_a_measurement_table_serves_as_candidates(fitted):
     m = measurements.read_measurements(fitted / "table.csv")
     res = diffwash.fit.suggest(fitted / "lib.json", m, n=3)
     assert len(res.picks) == 3 and res.candidates == len(m)
+
+
+def test_on_real_paint_it_measures_the_pair_one_wants_at_other_amounts_first():
+    """NTU paints (benchmarks/bench_suggest.py --related: following suggest then beats measuring at random on every
+    seed): with the wanted pair's other amounts among the candidates, they are what suggest picks, not rows of the
+    pairs already measured or of pairs nobody asked about."""
+    from dataclasses import replace
+
+    from conftest import ROOT
+
+    m = measurements.read_measurements(ROOT / "data" / "ntu-wpsm" / "ntu-spectral-train.csv")
+    m = m.select([set(p) <= {"P1", "P5", "P9"} for p in m.pigments])
+    bi = [i for i, w in enumerate(m.wavelengths) if w % 40 == 0]  # 11 bands: a quick fit
+    m = replace(m, values=m.values[:, bi], lo=m.lo[:, bi], hi=m.hi[:, bi], wavelengths=tuple(m.wavelengths[i] for i in bi),
+                grounds={k: v[bi] for k, v in m.grounds.items()})  # fmt: skip
+    key = [frozenset(p) for p in m.pigments]
+    amount = [round(sum(a), 4) for a in m.amounts]
+    rows = lambda pair: [i for i, k in enumerate(key) if k == frozenset(pair)]  # noqa: E731
+    single = [i for i, k in enumerate(key) if len(k) == 1 and amount[i] in (0.02, 0.05, 0.1)]
+    wanted, measured, other = rows(("P5", "P9")), rows(("P1", "P5")), rows(("P1", "P9"))
+    start = single + measured[:3]
+    queries = [i for i in wanted if m.amounts[i][0] == m.amounts[i][1]][:3]  # 1:1
+    asked = {tuple(sorted(zip(m.pigments[i], m.amounts[i]))) for i in queries}
+    related = [i for i in wanted if tuple(sorted(zip(m.pigments[i], m.amounts[i]))) not in asked][:2]
+    cand = sorted(related + other[:6] + measured[3:6])
+    lib = diffwash.fit.fit_mixtures(m.select(np.isin(np.arange(len(m)), start))).library
+    res = diffwash.fit.suggest(lib, m.select(np.isin(np.arange(len(m)), cand)), n=2,
+                               queries=m.select(np.isin(np.arange(len(m)), queries)))  # fmt: skip
+    assert {p.pigment for p in res.picks} <= {"P5+P9", "P9+P5"}, [(p.pigment, p.amount, p.score) for p in res.picks]

@@ -304,6 +304,24 @@ assert not hasattr(real, "answer")
     assert run.returncode == 0, run.stderr
 
 
+@pytest.mark.parametrize("given, want", [
+    (None, "--xla_cpu_multi_thread_eigen=false"),
+    ("--xla_dump_to=/tmp/x", "--xla_dump_to=/tmp/x --xla_cpu_multi_thread_eigen=false"),
+    ("--xla_cpu_multi_thread_eigen=true", "--xla_cpu_multi_thread_eigen=true"),  # the user's word stands
+])  # fmt: skip
+def test_importing_diffwash_turns_off_xlas_deadlocking_cpu_pool_unless_told_otherwise(given, want):
+    """`diffwash/__init__.py` says why: with XLA's intra-op pool, batched LAPACK kernels can wait on each other for
+    ever (a generated 80-row fit hung every time on 2 cores)."""
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")
+    if given is not None:
+        env["XLA_FLAGS"] = given
+    code = "import os, diffwash; print(os.environ['XLA_FLAGS'])"
+    run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == want
+
+
 def test_diffwash_version_answers_at_once():
     """A bound that a shared, loaded machine keeps (about 0.1-0.5 s now), but the old 3-14 s start breaks:
     the best of three fresh runs, interpreter start included."""

@@ -311,7 +311,7 @@ assert not hasattr(real, "answer")
 ])  # fmt: skip
 def test_importing_diffwash_turns_off_xlas_deadlocking_cpu_pool_unless_told_otherwise(given, want):
     """`diffwash/__init__.py` says why: with XLA's intra-op pool, batched LAPACK kernels can wait on each other for
-    ever (a generated 80-row fit hung every time on 2 cores)."""
+    ever (a generated 80-row fit hung twice on 2 cores)."""
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")
     if given is not None:

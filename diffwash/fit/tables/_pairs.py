@@ -66,12 +66,17 @@ def _rows(pairs, A):
     return idx, np.stack([np.arange(R) < len(r) for r in rows])
 
 
-def _pack(pairs, A, G, lab):
-    """Per pair: its rows' two amounts, grounds and target colours, padded to the largest pair (with a mask)."""
+def _pack(palette: mixing.Palette, pairs, A, G, lab, dtype):
+    """Per pair, as arrays of `dtype`: its two pigments' K, S, amount-law exponents and weights, and its rows' two
+    amounts, grounds, target colours and which are real (padded to the largest pair's count): `_fit_pairs`'s
+    arguments after the static ones."""
+    A, G, lab = np.asarray(A), np.asarray(G), np.asarray(lab)
     idx, mask = _rows(pairs, A)
     ij = np.asarray(pairs)
     A2 = np.stack([A[idx, ij[:, :1]], A[idx, ij[:, 1:]]], axis=-1)
-    return A2, G[idx], lab[idx], mask
+    per_pigment = (palette.K, palette.S, palette.law.gamma, palette.weights)
+    return (*(jnp.asarray(x, dtype)[ij] for x in per_pigment), *(jnp.asarray(x, dtype) for x in (A2, G[idx], lab[idx])),
+            jnp.asarray(mask))  # fmt: skip
 
 
 def _lm(residuals: Callable[[Array], Array], theta0: Array, steps: int) -> tuple[Array, Array]:
@@ -179,13 +184,9 @@ def fit_pair_terms(
         return None, Convergence(converged=True, steps=0, stage="pair terms (none measured)")
     dtype = jnp.zeros(()).dtype
     centres, width = _basis(palette.wavelengths, bumps)
-    A2, G2, lab2, mask = (jnp.asarray(x, dtype) if x.dtype != bool else jnp.asarray(x)
-                          for x in _pack(pairs, np.asarray(A), np.asarray(G), np.asarray(lab_target)))  # fmt: skip
+    theta, done, dec = _fit_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, bumps, ridge,
+                                  steps, *_pack(palette, pairs, A, G, lab_target, dtype))  # fmt: skip
     ij = np.asarray(pairs)
-    K, S = jnp.asarray(palette.K, dtype)[ij], jnp.asarray(palette.S, dtype)[ij]
-    gam, w = jnp.asarray(palette.law.gamma, dtype)[ij], jnp.asarray(palette.weights, dtype)[ij]
-    theta, done, dec = _fit_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, bumps, ridge, steps,
-                             K, S, gam, w, A2, G2, lab2, mask)  # fmt: skip
     # A library file holds pair terms within their declared bounds (`_schema.PairTerm`): clipped there, a fit's
     # library always loads again (fitted terms lie far inside: below 1.5 and 0.3 on the NTU table).
     bound = jnp.asarray([PAIR_BUMP_MAX] * (2 * bumps) + [PAIR_AMOUNT_MAX] * 2, theta.dtype)
@@ -224,13 +225,9 @@ def held_out_de2000(
     pairs = [tuple(int(x) for x in p) for p in terms.members]
     dtype = jnp.asarray(terms.k_bumps).dtype
     idx, mask = _rows(pairs, np.asarray(A))
-    A2, G2, lab2, _ = (jnp.asarray(x, dtype) for x in _pack(pairs, np.asarray(A), np.asarray(G), np.asarray(lab_target)))
-    ij = np.asarray(pairs)
-    K, S = jnp.asarray(palette.K, dtype)[ij], jnp.asarray(palette.S, dtype)[ij]
-    gam, w = jnp.asarray(palette.law.gamma, dtype)[ij], jnp.asarray(palette.weights, dtype)[ij]
     theta = jnp.concatenate([terms.k_bumps, terms.s_bumps, terms.k_amount[:, None], terms.s_amount[:, None]], 1)
     de = _loo_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, terms.k_bumps.shape[1],
-                    ridge, K, S, gam, w, A2, G2, lab2, jnp.asarray(mask), theta.astype(dtype))  # fmt: skip
+                    ridge, *_pack(palette, pairs, A, G, lab_target, dtype), theta.astype(dtype))  # fmt: skip
     de = np.asarray(de, np.float64)
     out[idx[mask]] = de[mask]
     return out

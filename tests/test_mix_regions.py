@@ -58,6 +58,21 @@ def _dE(a, b):
     return colorimetry.delta_e_2000(jnp.asarray(a), jnp.asarray(b))
 
 
+def test_a_model_error_measured_on_few_rows_holds_more_of_them():
+    """Split conformal prediction's finite-sample level: a model error fitted to hold 90% of 10 rows holds the next
+    row with probability about 90% only if it holds all 10 (ceil(11 x 0.9) = 10)."""
+    assert _posterior.conformal_level(10) == 1.0 and _posterior.conformal_level(9) == 1.0
+    assert _posterior.conformal_level(19) == pytest.approx(18 / 19) and _posterior.conformal_level(1700) < 0.901
+    rng = np.random.default_rng(0)
+    lab = rng.uniform(20, 80, (10, 3))
+    de = np.array([1.0] * 9 + [8.0])  # one row of the ten far off
+    spread = np.zeros((64, 10, 3))
+    held = lambda s: np.mean(de <= _regions.radius90(lab, spread, np.full(10, s)))  # noqa: E731
+    loose = _posterior.calibrate_scale(lab, lab, spread, de=de)
+    tight = _posterior.calibrate_scale(lab, lab, spread, de=de, share=_posterior.conformal_level(10))
+    assert held(loose) == 0.9 and held(tight) == 1.0 and tight > 3 * loose
+
+
 def test_rows_are_single_seen_unseen_or_unmixed():
     seen = (("A", "B"), ("B", "C"))
     got = _regions.kinds([("A",), ("A", "A"), ("B", "A"), ("A", "C"), ("a", "b"), ("A", "D"), ("D", "E")], seen)

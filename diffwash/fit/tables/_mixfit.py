@@ -733,7 +733,8 @@ def _rgb_laplace(fit: "_RGBFit", n_rows: int, P: int, gamma: bool, rank: int = _
 
 
 def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit, held_seen: np.ndarray | None = None):
-    """The model error of each kind of row (`_regions.KINDS`): of the table's own rows for `single` and `seen`
+    """The model error of each kind of row (`_regions.KINDS`), the smallest that makes the regions hold
+    `_posterior.conformal_level` of its rows (90%, more on a few rows): of the table's own rows for `single` and `seen`
     (a `seen` row whose pair has fitted terms with its CIEDE2000 left out of them, `held_seen`, where given: a
     pair's terms reproduce the few rows they were fitted to, which says nothing of its other amounts);
     for `unseen`, of the held-out rows of leave-pairs-out folds, and for `unmixed`, of folds that hold out every
@@ -754,7 +755,8 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit, held_seen:
             de = np.where(np.isfinite(held_seen[sel]), held_seen[sel], own)
             how["seen_from"] = ("each two-pigment row left out of its pair's terms (closed form at the fit's Gauss-Newton "
                                 "matrix); other rows in the fit")  # fmt: skip
-        scale[k] = _posterior.calibrate_scale(lab_m[sel], lab_p[sel], spread[:, sel], de=de)
+        scale[k] = _posterior.calibrate_scale(lab_m[sel], lab_p[sel], spread[:, sel], de=de,
+                                              share=_posterior.conformal_level(rows[k]))  # fmt: skip
     converged = {"steps": _posterior.PAINT_FOLD_STEPS, "refine_steps": _posterior.PAINT_FOLD_REFINE_STEPS}
     for k, folds, what, steps in (("unseen", [t for _, t in pair_folds(m)], "leave-pairs-out", {}),
                                   ("unmixed", paint_folds(m), "leave-one-paint's-mixtures-out", converged)):  # fmt: skip
@@ -765,9 +767,11 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit, held_seen:
             continue
         held = refit(folds, what, **steps)
         if k == "unseen":
-            scale[k] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test])
+            scale[k] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test],
+                                                  share=_posterior.conformal_level(len(test)))  # fmt: skip
         else:  # a fold's rows are one paint's: they fail together; hold 90% of each paint's, the worst included
-            scale[k] = max(_posterior.calibrate_scale(lab_m[t], h, spread[:, t]) for t, h in zip(folds, held))
+            scale[k] = max(_posterior.calibrate_scale(lab_m[t], h, spread[:, t], share=_posterior.conformal_level(int(t.sum())))
+                           for t, h in zip(folds, held))  # fmt: skip
         how[f"{k}_from"] = f"{what} cross-validation, {len(folds)} folds refitted from the fit's start"
     if not pairs(m):  # a table that mixes nothing: every mixture holds a paint never mixed, and no fold can tell
         scale["unmixed"] = _priors.UNMIXED_PRIOR

@@ -21,7 +21,8 @@ from ._version import __version__ as __version__
 # and waits; when every worker is such a kernel (both, on 2 cores), nobody runs the batch and the process hangs
 # with every thread idle. It hung a fit of a generated 80-row table twice, beside another JAX process
 # (benchmarks/README.md, "XLA's CPU deadlock"). Without that pool the kernels run their batches in place: the same
-# fits and renders, no slower here. Set before JAX starts its CPU backend; an `XLA_FLAGS` that says otherwise is left as it is.
+# fits and renders, no slower here. Set before JAX starts its CPU backend; an `XLA_FLAGS` that says otherwise is
+# left as it is.
 if "xla_cpu_multi_thread_eigen" not in _os.environ.get("XLA_FLAGS", ""):
     _os.environ["XLA_FLAGS"] = (_os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false").strip()
 

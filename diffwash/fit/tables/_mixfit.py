@@ -770,7 +770,8 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit, held_seen:
             scale[k] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test],
                                                   share=_posterior.conformal_level(len(test)))  # fmt: skip
         else:  # a fold's rows are one paint's: they fail together; hold 90% of each paint's, the worst included
-            scale[k] = max(_posterior.calibrate_scale(lab_m[t], h, spread[:, t], share=_posterior.conformal_level(int(t.sum())))
+            scale[k] = max(_posterior.calibrate_scale(lab_m[t], h, spread[:, t],
+                                                      share=_posterior.conformal_level(int(t.sum())))
                            for t, h in zip(folds, held))  # fmt: skip
         how[f"{k}_from"] = f"{what} cross-validation, {len(folds)} folds refitted from the fit's start"
     if not pairs(m):  # a table that mixes nothing: every mixture holds a paint never mixed, and no fold can tell

@@ -214,8 +214,8 @@ def held_out_de2000(
     A pair's terms have $2n + 2$ parameters, so a pair measured in a row or two reproduces those rows whatever
     its other amounts do: its rows' own residuals say little of how well the terms predict the pair elsewhere.
     Leaving each row out (the pigments kept, as they serve every pair) says that. It is the closed form of least
-    squares, at the fit's Gauss-Newton matrix $H = J^	op J + \lambda^2 I$ (the ridge $\lambda$ included): row
-    $i$'s residuals $r_i$ with it left out are $(I - J_i H^{-1} J_i^	op)^{-1} r_i$. A pair of one row is then
+    squares, at the fit's Gauss-Newton matrix $H = J^\top J + \lambda^2 I$ (the ridge $\lambda$ included): row
+    $i$'s residuals $r_i$ with it left out are $(I - J_i H^{-1} J_i^\top)^{-1} r_i$. A pair of one row is then
     predicted from the ridge alone, which is Duncan's law, as it should be.
     """
     terms = palette.pairs

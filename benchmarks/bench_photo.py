@@ -12,7 +12,18 @@ blacks) -> JPEG (quality 90). Several cameras (tone curve, matrix, white balance
     photo to the paper box, channel by channel;
 (b) 8 of the checker's patches as `references` in the layout: the mean CIEDE2000 of the other 16.
 
-Run: PYTHONPATH=. python benchmarks/bench_photo.py  (about a minute on 2 cores).
+The four built-in phones' tone curves are invented (an S-curve on top of the sRGB curve) and their files name
+no camera, so (a) reads them through the sRGB curve; the column "(a) camera curve" reads them through
+`diffwash.fit.photos._camera.camera_curve` instead, the cost of that assumption when it is wrong.
+
+`--curves FILE` adds cameras whose tone curves were measured: a JSON object `{"name": [[x, y], ...]}` of
+base curves (raw signal x -> linear display value y, then the sRGB encoding, as darktable's base-curve
+presets: each maker's curve measured from raw and JPEG pairs; darktable's source, src/iop/basecurve.c, is
+GPL and not shipped here). Those photos carry an EXIF camera make, so (a) reads them as `fit-swatch` does
+by default, through the typical camera curve; each curve is photographed with the paper at 55% and 90% of
+the sensor's clipping.
+
+Run: PYTHONPATH=. python benchmarks/bench_photo.py [--curves FILE]  (about two minutes on 2 cores).
 """
 
 from __future__ import annotations
@@ -92,8 +103,19 @@ def card(labs: np.ndarray) -> tuple[np.ndarray, dict, list]:
     return img, layout, boxes[1:]
 
 
+def measured_curve(points: list, exposure: float):
+    """A measured base curve (monotone cubic through its points, then the sRGB encoding) at `exposure`."""
+    from scipy.interpolate import PchipInterpolator
+
+    xs, ys = np.array([[0.0, 0.0], *points, [1.0, 1.0]], np.float64).T
+    order = np.unique(xs, return_index=True)[1]
+    B = PchipInterpolator(xs[order], ys[order])
+    return lambda x: colorimetry.to_display(np.clip(B(np.clip(exposure * x, 0, 1)), 0, 1))
+
+
 def photograph(img: np.ndarray, camera: tuple, path: Path, seed: int) -> None:
-    """Render `img` (linear reflectance) as a phone would and write a JPEG (module docstring)."""
+    """Render `img` (linear reflectance) as a phone would and write a JPEG (module docstring). A camera whose
+    curve is measured (a callable) writes an EXIF camera make, as a phone's file does."""
     _, curve, C, wb = camera
     rng = np.random.default_rng(seed)
     H, W, _ = img.shape
@@ -103,8 +125,11 @@ def photograph(img: np.ndarray, camera: tuple, path: Path, seed: int) -> None:
     light = 0.95 / (1 + 0.35 * r2) ** 2 * (1 + 0.08 * (xx / W - 0.5))
     sensor = sensor * light[..., None]
     sensor = sensor + np.sqrt(0.0004 * sensor + 1e-6) * rng.standard_normal(sensor.shape)
-    enc = tone_curve(sensor, *curve)
-    Image.fromarray(np.round(255 * np.clip(enc, 0, 1)).astype(np.uint8)).save(path, quality=90)
+    enc = curve(sensor) if callable(curve) else tone_curve(sensor, *curve)
+    exif = Image.Exif()
+    if callable(curve):
+        exif[0x010F] = "bench_photo measured curve"  # Make
+    Image.fromarray(np.round(255 * np.clip(enc, 0, 1)).astype(np.uint8)).save(path, quality=90, exif=exif)
 
 
 def de(rgb: np.ndarray, lab: np.ndarray) -> np.ndarray:
@@ -124,16 +149,25 @@ def plain_scaling(photo: Path, layout: dict) -> np.ndarray:
 BOARDS = [("dark smooth board", 0.12, 0.03), ("mid-grey textured board", 0.25, 0.15)]
 
 
-def run() -> list[dict]:
+def run(cameras: list | None = None) -> list[dict]:
     global BOARD, TEXTURE
     out = []
     for board in BOARDS:
         _, BOARD, TEXTURE = board
-        out += run_board(board[0])
+        out += run_board(board[0], CAMERAS if cameras is None else cameras)
     return out
 
 
-def run_board(board: str) -> list[dict]:
+def curve_cameras(path: str) -> list[tuple]:
+    """Cameras of measured tone curves (`--curves`), with phone A's crosstalk and white-balance error."""
+    curves = json.loads(Path(path).read_text())
+    _, _, C, wb = CAMERAS[0]
+    # The card's white patch reaches 0.86 * 0.95 (light) * 1.08 (red's white balance) = 0.88 of clipping at 1.
+    return [(f"{name} (paper at {level:.0%})", measured_curve(points, level / 0.88), C, wb)
+            for name, points in curves.items() for level in (0.55, 0.9)]  # fmt: skip
+
+
+def run_board(board: str, cameras: list) -> list[dict]:
     names, labs = patches()
     img, layout, boxes = card(labs)
     checker = np.arange(24)
@@ -141,16 +175,18 @@ def run_board(board: str) -> list[dict]:
     held = np.setdiff1d(checker, refs)
     out = []
     with tempfile.TemporaryDirectory() as tmp:
-        for k, cam in enumerate(CAMERAS):
+        for k, cam in enumerate(cameras):
             photo = Path(tmp) / f"card{k}.jpg"
             photograph(img, cam, photo, seed=k)
             t0 = time.perf_counter()
             a = np.array([s.rgb for s in _measure(photo, layout).patches])
+            a_cam = np.array([s.rgb for s in _measure(photo, layout, tone_curve="camera").patches])
             base = plain_scaling(photo, layout)
             lay_b = dict(layout, references=[{"box": boxes[i], "lab": labs[i].tolist()} for i in refs])
             m = _measure(photo, lay_b)
             b = np.array([s.rgb for s in m.patches])
             row = {"board": board, "camera": cam[0], "a_every_patch": float(np.mean(de(a, labs))),
+                   "a_camera_curve": float(np.mean(de(a_cam, labs))),
                    "a_plain_scaling": float(np.mean(de(base, labs))),
                    "b_other_16": float(np.mean(de(b[held], labs[held]))),
                    "b_paints": float(np.mean(de(b[24:], labs[24:]))),
@@ -162,6 +198,11 @@ def run_board(board: str) -> list[dict]:
 
 
 if __name__ == "__main__":
-    rows = run()
-    for key in ("a_every_patch", "a_plain_scaling", "b_other_16", "b_paints"):
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--curves", metavar="FILE", help="also cameras of measured tone curves (module docstring)")
+    args = ap.parse_args()
+    rows = run(CAMERAS + (curve_cameras(args.curves) if args.curves else []))
+    for key in ("a_every_patch", "a_camera_curve", "a_plain_scaling", "b_other_16", "b_paints"):
         print(f"{key}: mean over cameras {np.mean([r[key] for r in rows]):.2f}", file=sys.stderr)

@@ -99,6 +99,41 @@ def test_calibration_undoes_exposure_white_balance_and_falloff():
     assert np.max(np.abs(st.rgb / card.paper - 1)) > 0.1
 
 
+def _board_card(board: float, light_slope: float):
+    """Patches painted on a board (no bare paper around them), under light that falls off across the photo:
+    the linear image, its layout (paper box, black box on the bare board, patches) and each patch's truth."""
+    rng = np.random.default_rng(2)
+    H, W, side = 240, 360, 40
+    img = np.full((H, W, 3), board) * (1 + 0.02 * rng.standard_normal((H, W, 1)))
+    truth = rng.uniform(0.05, 0.6, (8, 3))
+    boxes = [[20 + 85 * (i % 4), 30 + 100 * (i // 4), 20 + 85 * (i % 4) + side, 30 + 100 * (i // 4) + side]
+             for i in range(9)]  # fmt: skip
+    boxes[8] = [150, 190, 210, 230]  # the paper (a white patch)
+    for b, rgb in zip(boxes, [*truth, np.full(3, 0.85)]):
+        img[b[1] : b[3], b[0] : b[2]] = rgb
+    xx = np.arange(W)[None, :, None] / W
+    img = img * (1 + light_slope * (xx - 0.5)) * 0.9
+    layout = {"paper": {"box": boxes[8], "reflectance": [0.85] * 3}, "black": {"box": [300, 200, 350, 235]},
+              "patches": [{"box": b, "coats": 1, "ground": "paper"} for b in boxes[:8]]}  # fmt: skip
+    return img, layout, truth
+
+
+def test_on_a_board_the_light_is_read_from_the_bare_board():
+    from diffwash import colorimetry
+    from diffwash.fit.photos._swatch import _measure
+
+    img, layout, truth = _board_card(0.2, 0.6)
+    display = colorimetry.to_display(np.clip(img, 0, 1))
+    m = _measure(display, layout)
+    assert "light falloff read from the bare board" in " ".join(m.calibration.notes) and m.calibration.degree > 0
+    de = lambda rgb: np.mean(np.asarray(colorimetry.delta_e_2000(colorimetry.linear_srgb_to_lab(rgb),  # noqa: E731
+                                                                  colorimetry.linear_srgb_to_lab(truth))))  # fmt: skip
+    read = np.array([s.rgb for s in m.patches])
+    # Without the black box there is no board to read: plain scaling to the paper box, off by the light.
+    plain = np.array([s.rgb for s in _measure(display, {k: v for k, v in layout.items() if k != "black"}).patches])
+    assert de(read) < 0.5 and de(plain) > 2.5, (de(read), de(plain))
+
+
 def test_trimmed_statistics_ignore_stains_and_edges():
     card = make_swatch_card(pigments.load("Cerulean Blue"), coats=(2,), effects=IDEAL)
     layout = parse_layout(card.layout)

@@ -33,6 +33,9 @@ def add_arguments(p) -> None:
     p.add_argument("--checker", action="store_true",
                    help="find an X-Rite ColorChecker Classic in each photo and calibrate the camera (tone curve and "
                         "colour matrix) from its 24 patches (needs the 'photo' extra)")  # fmt: skip
+    p.add_argument("--tone-curve", choices=("auto", "camera", "srgb"), default="auto",
+                   help="how a photo without references is read: a typical camera's tone curve (camera) or the sRGB "
+                        "curve (srgb); auto (default): camera when the file's EXIF names a camera")  # fmt: skip
     p.add_argument("--table", metavar="CSV", help="fit every pigment of a measurement table instead of a photo")
     p.add_argument("-o", "--output", required=True, metavar="JSON", help="the library file to write (diffwash predict and scenes read it)")
     p.add_argument("--name", help="the pigment's name (default: the layout's 'name', else the photo's file name); "
@@ -82,6 +85,8 @@ def run(args) -> int:
             raise DiffwashError("give either --table or photos with --layout, not both", field="--table")
         if args.checker:
             raise DiffwashError("only applies to photos", field="--checker")
+        if args.tone_curve != "auto":
+            raise DiffwashError("only applies to photos", field="--tone-curve")
         return _run_table(args, out, report)
     if not args.photos:
         raise DiffwashError("needs a PHOTO and its --layout, or --table CSV", field="PHOTO")
@@ -125,7 +130,7 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
     if args.loss is not None and args.loss != diffwash.fit.SWATCH_MODEL.loss:
         model = diffwash.fit.FitModel(thickness="linear", loss=args.loss)
     fit = diffwash.fit.fit_swatches(args.photos, args.layout, name=args.name, model=model, max_steps=args.max_steps,
-                                    checker=args.checker)  # fmt: skip
+                                    checker=args.checker, tone_curve=args.tone_curve)  # fmt: skip
     _print_cameras(fit.calibrations, args.photos)
     p = fit.pigment
     print(f"{p.name}: {len(fit.patches)} patches from {len(args.photos)} photo{'s' if len(args.photos) > 1 else ''}")
@@ -162,7 +167,8 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
                             "docs/fitting.md)", field="--loss")  # fmt: skip
     model = diffwash.fit.MixModel(weights=args.mixing == "weights", prior=diffwash.fit.CARD_PRIOR)
     fit = diffwash.fit.fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model,
-                                           max_steps=args.max_steps, checker=args.checker)  # fmt: skip
+                                           max_steps=args.max_steps, checker=args.checker,
+                                           tone_curve=args.tone_curve)  # fmt: skip
     _print_cameras(fit.calibrations, args.photos)
     n = len(args.photos)
     mixtures = sum(len(set(q.pigments)) > 1 for q in fit.patches)

@@ -63,7 +63,7 @@ from ..._errors import DiffwashError
 from ..._io import check_float32, read_json
 from ..._schema import LayoutFile, name_key, validate
 from ...shading import DEFAULT_PAPER
-from ._camera import CameraModel, fit_camera, needed_references, spectrum_lab
+from ._camera import CameraModel, ToneCurve, fit_camera, needed_references, spectrum_lab
 from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
 
 __all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "patch_paints", "swatch_pigments", "Calibration",
@@ -368,6 +368,8 @@ class Calibration:
     - `pixels`: bare-paper pixels it was fitted to.
     - `light_range`: the smallest and largest relative light over the photo.
     - `size`: the photo's (width, height).
+    - `curve`: the tone curve the photo was read through without references (None: the sRGB curve), and
+      `curve_accuracy` its typical error (mean CIEDE2000), a colour floor on every patch.
     """
 
     gain: np.ndarray
@@ -381,6 +383,8 @@ class Calibration:
     lack_of_fit: float = 0.0
     camera: CameraModel | None = None
     raw: bool = False
+    curve: ToneCurve | None = None
+    curve_accuracy: float = 0.0
 
     def light(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """Relative light at pixel centres (ys, xs) (1 on average over the paper box)."""
@@ -450,30 +454,28 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
     notes = []
     step = max(1, int(np.sqrt(H * W / 40000)))  # at most ~40k samples of the light surface
     ys, xs, y = _paper_samples(linear, display, layout, pb, ref, lo_level, hi_level)
-    # Lower the degree until the visible paper spans enough of the photo to support it.
-    span = (np.ptp(xs) / W if len(xs) else 0.0, np.ptp(ys) / H if len(ys) else 0.0)
-    while degree > 0:
-        n_terms = (degree + 1) * (degree + 2) // 2
-        if len(xs) >= 20 * n_terms and min(span) > 0.5:
-            break
-        degree -= 1
+    degree, coef, use, lack, low, high = _surface(ys, xs, y, W, H, degree, pb, step)
     if degree < 2:
         notes.append(f"little bare paper visible around the boxes: light falloff modelled to degree {degree}")
-    size = _cell_size(H, W)
-    cell = (ys // size) * (W // size + 1) + xs // size  # the paper in patch-sized cells
-    A = _poly(xs, ys, W, H, degree)
-    coef, use = _trimmed_lstsq(A, y)
-    lack = _lack_of_fit(y - A @ coef, use, cell)
-    low, high = _light_span(A, coef, W, H, degree, pb, step)
     if degree > 0 and (lack > MAX_LACK_OF_FIT or low < LIGHT_RANGE[0] or high > LIGHT_RANGE[1]):
         # What looked like bare paper does not follow a plausible smooth light: it is not all paper (a board, a
         # mount, a table around the card). Scaling to the paper box alone is the safer reading.
         notes.append(f"the bare paper around the boxes does not follow a smooth light falloff (it misses by "
                      f"{100 * lack:.0f}%, light {low:.2f}-{high:.2f} of the paper box's; is it all paper?): light "
                      f"falloff not corrected")  # fmt: skip
-        degree, A = 0, _poly(xs, ys, W, H, 0)
-        coef, use = _trimmed_lstsq(A, y)
-        lack = _lack_of_fit(y - A @ coef, use, cell)
+        degree, coef, use, lack, low, high = _surface(ys, xs, y, W, H, 0, pb, step)
+    if degree == 0 and layout.black is not None:
+        # Cards painted on a board: the bare board around the boxes (the black box's surface) shows the light.
+        bb = inner_box(layout.black, 0.05, 1)
+        bref = np.median(linear[bb.y0 : bb.y1, bb.x0 : bb.x1].reshape(-1, 3), axis=0)
+        if np.all(bref > 0):
+            bys, bxs, by = _paper_samples(linear, display, layout, bb, bref, lo_level, hi_level, own=layout.black)
+            board = _surface(bys, bxs, by, W, H, 2, pb, step)
+            b_degree, _, _, b_lack, b_low, b_high = board
+            if b_degree > 0 and b_lack <= MAX_LACK_OF_FIT and LIGHT_RANGE[0] <= b_low and b_high <= LIGHT_RANGE[1]:
+                degree, coef, use, lack, low, high = board
+                notes = [f"light falloff read from the bare board around the boxes (the black box's surface), "
+                         f"degree {degree}"]  # fmt: skip
     cal = Calibration(gain=np.ones(3), coefficients=coef, degree=degree, pixels=int(use.sum()), light_range=(1.0, 1.0),
                       size=(W, H), norm=1.0, notes=notes)  # fmt: skip
     pys, pxs = np.mgrid[pb.y0 : pb.y1, pb.x0 : pb.x1]
@@ -490,6 +492,26 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
 #: The light falloff's plausible range over the photo, relative to the paper box (outside it, what was taken for
 #: bare paper is something else).
 LIGHT_RANGE = (0.5, 1.6)
+
+
+def _surface(ys: np.ndarray, xs: np.ndarray, y: np.ndarray, W: int, H: int, degree: int, pb: Box, step: int
+             ) -> tuple[int, np.ndarray, np.ndarray, float, float, float]:  # fmt: skip
+    """The light surface through samples (ys, xs) of log brightness `y`, of `degree` at most (lowered until the
+    samples span enough of the photo to support it): its degree, coefficients, the samples kept, its lack of
+    fit and the smallest and largest light over the photo relative to the paper box."""
+    span = (np.ptp(xs) / W if len(xs) else 0.0, np.ptp(ys) / H if len(ys) else 0.0)
+    while degree > 0:
+        n_terms = (degree + 1) * (degree + 2) // 2
+        if len(xs) >= 20 * n_terms and min(span) > 0.5:
+            break
+        degree -= 1
+    size = _cell_size(H, W)
+    cell = (ys // size) * (W // size + 1) + xs // size  # the samples in patch-sized cells
+    A = _poly(xs, ys, W, H, degree)
+    coef, use = _trimmed_lstsq(A, y)
+    lack = _lack_of_fit(y - A @ coef, use, cell)
+    low, high = _light_span(A, coef, W, H, degree, pb, step)
+    return degree, coef, use, lack, low, high
 
 
 def _light_span(A: np.ndarray, coef: np.ndarray, W: int, H: int, degree: int, pb: Box, step: int
@@ -509,17 +531,18 @@ MAX_LACK_OF_FIT = 0.04
 
 
 def _paper_samples(linear: np.ndarray, display: np.ndarray, layout: Layout, pb: Box, ref: np.ndarray, lo_level: float,
-                   hi_level: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+                   hi_level: float, own: Box | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """Bare paper visible anywhere, as block medians: block centres (ys, xs) and log brightness relative to `ref`.
 
     Blocks outside every box (grown by a margin) or inside the paper box, unclipped, coloured like the paper box
     and within a factor 0.4-1.6 of its brightness. Medians over blocks of a few pixels, not single pixels: the
     bright tail of a darker textured surface (a board around the card) would pass as paper pixel by pixel.
+    `own`: the bare board's samples instead, around the black box `own` (`pb` its inner box, `ref` its colour).
     """
     H, W, _ = linear.shape
     mask = np.ones((H, W), bool)
-    boxes = [p.box for p in layout.patches] + ([layout.black] if layout.black is not None else [])
-    boxes += [r.box for r in layout.references]
+    boxes = [p.box for p in layout.patches] + ([layout.black] if layout.black is not None and own is None else [])
+    boxes += [r.box for r in layout.references] + ([layout.paper] if own is not None else [])
     for b in boxes:
         g = b.grow(max(3, int(0.15 * min(b.width, b.height))))
         mask[max(g.y0, 0) : max(g.y1, 0), max(g.x0, 0) : max(g.x1, 0)] = False
@@ -633,7 +656,8 @@ def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibra
         scale = cal.camera.gain() / float(np.mean(light)) * cal.camera.curve.slope(d_mean) / _srgb_slope(d_mean)
     else:
         values = linear[ib.y0 : ib.y1, ib.x0 : ib.x1] / light[..., None] / cal.gain
-        scale = 1 / (float(np.mean(light)) * cal.gain) / (_srgb_slope(d_mean) if cal.raw else 1.0)
+        slope = cal.curve.slope(d_mean) / _srgb_slope(d_mean) if cal.curve is not None else 1.0
+        scale = slope / (float(np.mean(light)) * cal.gain) / (_srgb_slope(d_mean) if cal.raw else 1.0)
     lo_level, hi_level = _clip_levels(bits)
     clipped_lo = np.mean(raw <= lo_level, axis=(0, 1))
     clipped_hi = np.mean(raw >= hi_level, axis=(0, 1))
@@ -641,6 +665,8 @@ def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibra
     cov = noise.cov
     if cal.camera is not None:  # the camera model's own error (leave-one-out over the references) as a colour floor
         cov = cov + np.diag(np.square(camera_floor(noise.value, cal.camera.accuracy)))
+    elif cal.curve_accuracy > 0:  # the assumed tone curve's typical error, likewise
+        cov = cov + np.diag(np.square(camera_floor(noise.value, cal.curve_accuracy)))
     return PatchStats(rgb=noise.value, spread=noise.spread, clipped_lo=clipped_lo, clipped_hi=clipped_hi,
                       pixels=int(ys.size), cov=cov, pixels_per_sample=noise.pixels_per_sample,
                       interval=noise.interval, floor=noise.floor)  # fmt: skip
@@ -657,18 +683,19 @@ def camera_floor(rgb: np.ndarray, accuracy: float) -> np.ndarray:
     return 3 * accuracy / (L + 16) * rgb
 
 
-def linearise(display: np.ndarray) -> np.ndarray:
-    """Display sRGB in [0, 1] to linear (the IEC 61966-2-1 transfer function), in numpy.
+def linearise(display: np.ndarray, curve: ToneCurve | None = None) -> np.ndarray:
+    """Display sRGB in [0, 1] to linear (the IEC 61966-2-1 transfer function, or `curve`), in numpy.
 
     A photo is decoded in blocks of rows: the transfer function works through several float64 temporaries of
     its input's size, which for a photo of hundreds of patches (tens of millions of values) was a gigabyte."""
     display = np.asarray(display, np.float64)
+    decode = colorimetry.from_display if curve is None else curve
     if display.ndim < 2:
-        return colorimetry.from_display(display)
+        return decode(display)
     out = np.empty(display.shape, np.float64)
     step = max(1, (1 << 18) // max(1, int(np.prod(display.shape[1:]))))
     for y in range(0, display.shape[0], step):
-        out[y : y + step] = colorimetry.from_display(display[y : y + step])
+        out[y : y + step] = decode(display[y : y + step])
     return out
 
 

@@ -41,7 +41,7 @@ from .._kmfit import delta_e_displayed, starts_for
 from ._noise import camera_noise_floor, jpeg_steps
 from ._noisefit import Observations, Uncertainty, fit_noise, uncertainty
 from ._noisefit import _prediction_and_jacobian
-from ._camera import RAW_SUFFIXES, find_checker, read_raw
+from ._camera import CAMERA_CURVE_ACCURACY, RAW_SUFFIXES, ToneCurve, default_curve, find_checker, read_raw
 from ._photo import Calibration, Layout, PatchStats, calibrate, calibrate_references, inner_box, linearise
 from ._photo import parse_layout, patch_stats
 from ._photo import read_layout, swatch_pigments
@@ -324,24 +324,26 @@ class _Photo:
     patches: list[PatchStats]
 
 
-def _measure_all(photo: Any, layout: Any, checker: bool = False) -> tuple[list[Any], list[Any], list[_Photo]]:
+def _measure_all(photo: Any, layout: Any, checker: bool = False, tone_curve: str = "auto"
+                 ) -> tuple[list[Any], list[Any], list[_Photo]]:  # fmt: skip
     """The photos and layouts (one or a list of each, as many layouts as photos) and each photo measured."""
     photos = list(photo) if isinstance(photo, (list, tuple)) else [photo]
     layouts = list(layout) if isinstance(layout, (list, tuple)) else [layout]
     if len(photos) != len(layouts):
         raise DiffwashError(f"got {len(photos)} photos but {len(layouts)} layouts")
-    return photos, layouts, [_measure(ph, lay, checker) for ph, lay in zip(photos, layouts)]
+    return photos, layouts, [_measure(ph, lay, checker, tone_curve) for ph, lay in zip(photos, layouts)]
 
 
 def _raw_path(photo: Any) -> bool:
     return isinstance(photo, (str, os.PathLike)) and Path(photo).suffix.lower() in RAW_SUFFIXES
 
 
-def _measure(photo: Any, layout: Any, checker: bool = False) -> _Photo:
+def _measure(photo: Any, layout: Any, checker: bool = False, tone_curve: str = "auto") -> _Photo:
     """Read, validate, calibrate and measure one photo (its patches, paper and black boxes).
 
     With references in the layout (or `checker`: a ColorChecker found in the photo) the photo is read through
-    a camera model fitted to them (`diffwash.fit.photos._camera`); a raw photo is linear already.
+    a camera model fitted to them (`diffwash.fit.photos._camera`); a raw photo is linear already. Without,
+    through `tone_curve` (`diffwash.fit.photos._camera.default_curve`: "auto", "camera" or "srgb").
     """
     display, bits, photo_path = _load_photo(photo)
     raw = _raw_path(photo)
@@ -354,11 +356,18 @@ def _measure(photo: Any, layout: Any, checker: bool = False) -> _Photo:
         L = read_layout(layout, size=(W, H))
     else:
         L = parse_layout(layout, size=(W, H))
-    linear = display if raw else linearise(display)
-    cal = replace(calibrate(linear, display, bits, L, file=L.path or photo_path), raw=raw)
+    curve, note = default_curve(photo_path, tone_curve)
+    if raw:
+        curve = ToneCurve("linear")
+    linear = display if raw else linearise(display, curve)
+    cal = calibrate(linear, display, bits, L, file=L.path or photo_path)
+    accuracy = CAMERA_CURVE_ACCURACY if curve.kind == "camera" else 0.0
+    cal = replace(cal, raw=raw, curve=None if raw else curve, curve_accuracy=accuracy)
     extra = find_checker(display, file=photo_path) if checker else None
     if L.references or extra is not None:
         cal = calibrate_references(display, bits, L, cal, raw=raw, file=L.path or photo_path, extra=extra)
+    elif not raw:
+        cal = replace(cal, notes=cal.notes + [note])
     steps = jpeg_steps(photo_path)
     paper = patch_stats(linear, display, bits, cal, L.paper, steps, reference=True)
     if cal.camera is not None and L.paper_default:  # the paper as the references measure it
@@ -418,6 +427,7 @@ def fit_swatches(
     model: FitModel = SWATCH_MODEL,
     max_steps: int = 1000,
     checker: bool = False,
+    tone_curve: str = "auto",
 ) -> SwatchFit:
     """Fit one pigment's K and S (per coat) to photos of its swatch card.
 
@@ -437,6 +447,9 @@ def fit_swatches(
     - `max_steps`: Levenberg-Marquardt steps at most (per run).
     - `checker`: find an X-Rite ColorChecker Classic in each photo and calibrate the camera from its 24
       patches (with the layout's `references`, if any).
+    - `tone_curve`: how a photo without references is read: "auto" (a typical camera's tone curve when the
+      file's EXIF names a camera, else the sRGB curve), "camera" or "srgb"
+      (`diffwash.fit.photos._camera.camera_curve`).
 
     **Returns:**
 
@@ -448,7 +461,7 @@ def fit_swatches(
     pigment, alone or mixed (`swatch_pigments`): those are fitted jointly by
     `fit_swatch_mixtures`.
     """
-    photos, layouts, measured = _measure_all(photo, layout, checker)
+    photos, layouts, measured = _measure_all(photo, layout, checker, tone_curve)
     names = swatch_pigments([m.layout for m in measured], name=name, default=_default_name(photos[0]))
     if len(names) > 1:
         raise DiffwashError(f"the layouts hold {len(names)} pigments ({', '.join(names)}), alone or mixed: fit them "

@@ -136,6 +136,7 @@ def fit_swatch_mixtures(
     rtol: float | None = None,
     checker: bool = False,
     posterior: bool = True,
+    tone_curve: str = "auto",
 ) -> SwatchMixtureFit:
     """Fit every pigment of swatch cards that hold several, alone and mixed, jointly (module docstring).
 
@@ -155,13 +156,14 @@ def fit_swatch_mixtures(
     - `posterior`: keep the fit's posterior and model errors, so that the library's predictions carry 90%
       regions (`de2000_90`; `fit_mixtures`'s `posterior`). Off, the fit skips the posterior's folds (on a
       card of 22 patches, 0.1 s instead of 0.6 s once compiled).
+    - `tone_curve`: how a photo without references is read ("auto", "camera" or "srgb"; as `fit_swatches`).
 
     **Returns:**
 
     A `SwatchMixtureFit`: the library (amounts in coats) and each patch's observed and fitted colour. Bad
     input raises `DiffwashError` naming the file and the field, as `fit_swatches`.
     """
-    photos, _, measured = _measure_all(photo, layout, checker)
+    photos, _, measured = _measure_all(photo, layout, checker, tone_curve)
     paints = patch_paints([m.layout for m in measured], name=name, default=_default_name(photos[0]))
     for m, rows in zip(measured, paints):
         for i, (names, _) in enumerate(rows):

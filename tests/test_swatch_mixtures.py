@@ -94,6 +94,19 @@ def test_the_fit_predicts_a_mixture_it_did_not_see(fitted, card):
     assert pred.de2000_90 is not None and np.all(de <= pred.de2000_90) and np.all(pred.de2000_90 < 8), pred.de2000_90
 
 
+def test_regions_carry_the_photos_own_measurement_error(card):
+    # One patch per paint: the fit reproduces each exactly, so the card alone would say its model error is 0.
+    # A photo read through an assumed tone curve (2 CIEDE2000 typical error) is not that sure of its colours.
+    layout = copy.deepcopy(card.layout)
+    layout["patches"] = [p for p in layout["patches"] if p["coats"] == 1 and p["ground"] == "paper"]
+    regions = {}
+    for curve in ("srgb", "camera"):
+        lib = fit_swatch_mixtures(card.photo, layout, tone_curve=curve).library
+        regions[curve] = lib.predict(["P1", "P4"], [1, 1], ["paper", "paper"]).de2000_90
+        assert lib.fit["uncertainty"]["measurement"]["per_axis"] > 0
+    assert np.all(regions["camera"] > 3.0) and np.all(regions["srgb"] < 1.5), regions
+
+
 def test_the_card_fit_says_what_its_patches_determined(fitted):
     unc = fitted.library.fit["uncertainty"]
     assert set(unc["model_error"]) == {"single", "seen", "unseen"}  # every pair is on the card: unseen by folds

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ... import mixing
+from ... import colorimetry, mixing
 from ..._errors import DiffwashError
 from ...library import Library
 from ...measurements import Measurements
@@ -126,6 +126,38 @@ def _per_coat(fit: MixtureFit, scale: float) -> MixtureFit:
 CARD_PRIOR = 0.1
 
 
+def measurement_error(measured: list[_Photo]) -> float:
+    """How far a patch's reading may be from its true colour: the median over the patches of their noise and
+    calibration floor (`diffwash.fit.photos._photo.patch_stats`'s covariance), in CIELAB units per axis."""
+    var = []
+    for m in measured:
+        for st in m.patches:
+            rgb = np.clip(np.asarray(st.rgb, np.float64), 1e-4, None)
+            h = 1e-4 * np.maximum(rgb, 1e-3)
+            lab = lambda x: np.asarray(colorimetry.linear_srgb_to_lab(x), np.float64)  # noqa: E731
+            J = np.stack([(lab(rgb + h * e) - lab(rgb - h * e)) / (2 * h[c]) for c, e in enumerate(np.eye(3))], 1)
+            var.append(float(np.trace(J @ np.asarray(st.cov) @ J.T)) / 3)
+    v = float(np.median(var)) if var else 0.0
+    return float(np.sqrt(v)) if np.isfinite(v) else 0.0
+
+
+def _with_measurement_error(lib: Library, measured: list[_Photo]) -> Library:
+    """The library with its model errors widened by the photos' measurement error (in quadrature).
+
+    The fit reproduces its patches as the photo read them. A card of one patch per paint reproduces them
+    exactly, and its model error comes out near 0, whatever the reading's own error (a camera curve assumed, a
+    camera model's leave-one-out error, noise). A prediction is of the true colour, so both count."""
+    post = lib.posterior
+    m = measurement_error(measured)
+    if post is None or m <= 0:
+        return lib
+    me = {k: float(np.hypot(v, m)) for k, v in post.model_error.items()}
+    record = {**(post.record or {}), "measurement": {"per_axis": round(m, 4), "from": "the median patch's noise "
+              "and calibration floor, added in quadrature to each kind's model error"}}  # fmt: skip
+    fit = {**lib.fit, "uncertainty": record} if lib.fit and "uncertainty" in lib.fit else lib.fit
+    return replace(lib, posterior=replace(post, model_error=me, record=record), fit=fit)
+
+
 def fit_swatch_mixtures(
     photo: Any,
     layout: Any,
@@ -182,6 +214,7 @@ def fit_swatch_mixtures(
     scale = mixing.REFERENCE_AMOUNT
     scaled = replace(table, amounts=tuple(tuple(scale * a for a in row) for row in table.amounts))
     fit = _per_coat(fit_mixtures(scaled, model=model, max_steps=max_steps, rtol=rtol, posterior=posterior), scale)
+    fit = replace(fit, library=_with_measurement_error(fit.library, measured))
     fitted = np.asarray(fit.library.predict(table).linear_srgb, np.float64)
     rgb, lo, hi = table.values, table.lo, table.hi
     # As the camera would have recorded the fit: a clipped channel shows its bound when the fit lies beyond it.

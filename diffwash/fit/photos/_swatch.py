@@ -32,8 +32,10 @@ from typing import Any
 
 import numpy as np
 
+from ... import colorimetry
 from ..._errors import DiffwashError
 from ..._io import read_image
+from ..._regions import Posterior
 from ...library import Library, library_from_pigments
 from ...pigments import Pigment
 from .._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
@@ -98,6 +100,22 @@ class PatchResult:
             out["standard_error"] = [float(f"{v:.4g}") for v in self.se]
             out["noise_floor"] = self.floor
         return out
+
+
+#: The standard deviation given to a log K or log S that the photo only bounds or does not determine, in a
+#: library's posterior (`SwatchFit.posterior`): a factor of e either way.
+UNDETERMINED_SD = 1.0
+
+
+def lab_sd(rgb: Any, cov: Any) -> float:
+    """The standard deviation per CIELAB axis (RMS over the three) of a linear sRGB colour `rgb` of covariance
+    `cov` (3, 3), to first order."""
+    rgb = np.clip(np.asarray(rgb, np.float64), 1e-4, None)
+    h = 1e-4 * np.maximum(rgb, 1e-3)
+    lab = lambda x: np.asarray(colorimetry.linear_srgb_to_lab(x), np.float64)  # noqa: E731
+    J = np.stack([(lab(rgb + h[c] * e) - lab(rgb - h[c] * e)) / (2 * h[c]) for c, e in enumerate(np.eye(3))], 1)
+    v = float(np.trace(J @ np.asarray(cov, np.float64) @ J.T)) / 3
+    return float(np.sqrt(v)) if np.isfinite(v) and v > 0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -254,10 +272,41 @@ class SwatchFit:
     @property
     def library(self) -> Library:
         """The pigment as a `diffwash.library.Library` per sRGB channel (amounts in coats, its grounds the card's
-        paper and black), with the diagnostics as its fit record."""
+        paper and black), with the diagnostics as its fit record and, for the noise-aware fit, its posterior
+        (`posterior`), so that `diffwash predict` writes 90% regions."""
         k2 = self.model.k2 if self.model.surface == "saunderson" else 0.0
-        return library_from_pigments([self.pigment], grounds={"paper": self.paper, "black": self.black}, k2=k2,
-                                     fit=self.to_dict())  # fmt: skip
+        lib = library_from_pigments([self.pigment], grounds={"paper": self.paper, "black": self.black}, k2=k2,
+                                    fit=self.to_dict())  # fmt: skip
+        return replace(lib, posterior=self.posterior())
+
+    def posterior(self) -> Posterior | None:
+        """The fit's posterior as a library's (`diffwash._regions.Posterior`), or None for an unweighted fit.
+
+        The covariance of the six logs (calibration included), with a log that the photo only bounds or does
+        not determine given a standard deviation of `UNDETERMINED_SD` and no correlation; the amount law's
+        exponent is fixed (1). The model error of a single paint is the patches' own measurement error (their
+        noise and calibration floor, `lab_sd`) and the fit's residuals, in quadrature (CIELAB units per axis).
+        """
+        if self.uncertainty is None:
+            return None
+        unc = self.uncertainty
+        cov = np.where(np.isfinite(unc.log_cov), unc.log_cov, 0.0)
+        loose = np.array([bool(r) for r in unc.reason]) | ~np.isfinite(np.diag(unc.log_cov))
+        loose |= np.diag(cov) > UNDETERMINED_SD**2
+        cov[loose, :] = cov[:, loose] = 0.0
+        cov[loose, loose] = UNDETERMINED_SD**2
+        w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+        F = np.vstack([V * np.sqrt(np.maximum(w, 0.0)), np.zeros((1, 6))])  # + log gamma, fixed
+        measured = np.median([lab_sd(q.observed, np.diag(np.square(q.se))) for q in self.patches if q.se is not None]
+                             or [0.0])  # fmt: skip
+        lab = lambda x: np.asarray(colorimetry.linear_srgb_to_lab(np.clip(x, 1e-6, None)), np.float64)  # noqa: E731
+        resid = np.array([lab(q.fitted) - lab(q.observed) for q in self.patches])
+        residual = float(np.sqrt(np.mean(np.square(resid)))) if len(resid) else 0.0
+        single = float(np.hypot(measured, residual))
+        record = {"single_from": "the patches' median measurement error (noise and calibration floor) and the fit's "
+                  "residuals, in quadrature", "measurement": {"per_axis": round(float(measured), 4)},
+                  "residual_per_axis": round(residual, 4)}  # fmt: skip
+        return Posterior(F, np.zeros(7), {"single": single}, (), record)
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the library file (one pigment, per sRGB channel; also a pigment file) with the diagnostics

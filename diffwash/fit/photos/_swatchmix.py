@@ -31,13 +31,13 @@ from typing import Any
 
 import numpy as np
 
-from ... import colorimetry, mixing
+from ... import mixing
 from ..._errors import DiffwashError
 from ...library import Library
 from ...measurements import Measurements
 from ..tables import MixModel, MixtureFit, fit_mixtures
 from ._photo import GROUNDS, Calibration, _name_key, patch_paints
-from ._swatch import PatchResult, _bounds, _default_name, _measure_all, _Photo
+from ._swatch import PatchResult, _bounds, _default_name, _measure_all, _Photo, lab_sd
 from .._kmfit import delta_e_displayed
 
 __all__ = ["SwatchMixtureFit", "fit_swatch_mixtures"]
@@ -129,16 +129,7 @@ CARD_PRIOR = 0.1
 def measurement_error(measured: list[_Photo]) -> float:
     """How far a patch's reading may be from its true colour: the median over the patches of their noise and
     calibration floor (`diffwash.fit.photos._photo.patch_stats`'s covariance), in CIELAB units per axis."""
-    var = []
-    for m in measured:
-        for st in m.patches:
-            rgb = np.clip(np.asarray(st.rgb, np.float64), 1e-4, None)
-            h = 1e-4 * np.maximum(rgb, 1e-3)
-            lab = lambda x: np.asarray(colorimetry.linear_srgb_to_lab(x), np.float64)  # noqa: E731
-            J = np.stack([(lab(rgb + h * e) - lab(rgb - h * e)) / (2 * h[c]) for c, e in enumerate(np.eye(3))], 1)
-            var.append(float(np.trace(J @ np.asarray(st.cov) @ J.T)) / 3)
-    v = float(np.median(var)) if var else 0.0
-    return float(np.sqrt(v)) if np.isfinite(v) else 0.0
+    return float(np.median([lab_sd(st.rgb, st.cov) for m in measured for st in m.patches] or [0.0]))
 
 
 def _with_measurement_error(lib: Library, measured: list[_Photo]) -> Library:

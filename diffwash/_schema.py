@@ -497,6 +497,16 @@ class LayoutPaper(_Part):
     reflectance: Annotated[list[Annotated[Number, Field(gt=0, le=1)]], Field(min_length=3, max_length=3),
                            Shaped("must be 3 linear reflectances (red, green, blue)")] | None = Field(
         None, description="the paper's linear RGB reflectance; by default diffwash's paper (0.92, 0.90, 0.84)")
+    lab: Annotated[tuple[Annotated[Number, Field(gt=0, le=100)], Annotated[Number, Field(ge=-200, le=200)],
+                         Annotated[Number, Field(ge=-200, le=200)]],
+                   Shaped("must be [L, a, b] (CIELAB, D65)")] | None = Field(  # fmt: skip
+        None, description="or its CIELAB (D65, CIE 1931 2-degree), as a spectrophotometer gives it")
+
+    @pydantic.model_validator(mode="after")
+    def _one_colour(self) -> "LayoutPaper":
+        if self.reflectance is not None and self.lab is not None:
+            raise _Located("give the paper's reflectance or its lab, not both", ("lab",))
+        return self
 
 
 class LayoutBlack(_Part):

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from diffwash import DiffwashError, colorimetry
 from diffwash._io import write_png
 from diffwash.fit.photos._camera import _fit_curve, checker_references, find_checker, fit_camera, lab_to_linear, read_raw
+from diffwash.fit import fit_swatches
 from diffwash.fit.photos._photo import parse_layout
 from diffwash.swatchcard import make_swatch_card
 from diffwash import pigments
@@ -56,6 +57,27 @@ def test_bad_references_name_the_field(ref, field, words):
     with pytest.raises(DiffwashError) as e:
         parse_layout(_layout(references=[ref]), file="card.json", size=(100, 80))
     assert f"card.json: {field}:" in str(e.value) and words in str(e.value)
+
+
+def test_the_paper_may_be_given_as_lab_and_its_default_is_said():
+    lab = [95.0, -0.5, 1.0]
+    L = parse_layout(_layout(paper={"box": [0, 0, 10, 10], "lab": lab}), size=(100, 80))
+    np.testing.assert_allclose(L.paper_reflectance, lab_to_linear(np.array(lab)), rtol=1e-9)
+    assert not L.paper_default and parse_layout(_layout(), size=(100, 80)).paper_default
+    with pytest.raises(DiffwashError, match="card.json: paper.lab: give the paper's reflectance or its lab"):
+        parse_layout(_layout(paper={"box": [0, 0, 10, 10], "lab": lab, "reflectance": [0.9] * 3}), file="card.json",
+                     size=(100, 80))  # fmt: skip
+    with pytest.raises(DiffwashError, match="card.json: paper.lab: is outside the sRGB gamut"):
+        parse_layout(_layout(paper={"box": [0, 0, 10, 10], "lab": [60, 120, 0]}), file="card.json", size=(100, 80))
+
+
+def test_the_default_paper_is_said_in_a_note(tmp_path):
+    card = make_swatch_card(pigments.load("Quinacridone Rose"), coats=(1, 2), patch=40, seed=3)
+    layout = {**card.layout, "paper": {"box": card.layout["paper"]["box"]}}
+    notes = " ".join(fit_swatches(card.photo, layout).calibrations[0].notes)
+    assert "the paper box's colour was not given" in notes
+    given = {**card.layout, "paper": {"box": card.layout["paper"]["box"], "reflectance": [0.9, 0.9, 0.88]}}
+    assert "was not given" not in " ".join(fit_swatches(card.photo, given).calibrations[0].notes)
 
 
 def test_reference_forms_agree():

@@ -63,7 +63,7 @@ from ..._errors import DiffwashError
 from ..._io import check_float32, read_json
 from ..._schema import LayoutFile, name_key, validate
 from ...shading import DEFAULT_PAPER
-from ._camera import CameraModel, ToneCurve, fit_camera, needed_references, spectrum_lab
+from ._camera import CameraModel, ToneCurve, fit_camera, lab_to_linear, needed_references, spectrum_lab
 from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
 
 __all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "patch_paints", "swatch_pigments", "Calibration",
@@ -195,6 +195,12 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
     model = validate(LayoutFile, data, file, what="layout")
     paper_box = _box(model.paper.box, file, "paper.box", size)
     refl = model.paper.reflectance if model.paper.reflectance is not None else list(DEFAULT_PAPER)
+    if model.paper.lab is not None:
+        rgb = lab_to_linear(np.asarray(model.paper.lab, np.float64))
+        if np.any(rgb <= 0) or np.any(rgb > 1):
+            raise _fail(f"is outside the sRGB gamut (linear {np.round(rgb, 3).tolist()}): give the paper's "
+                        f"reflectance instead", file, "paper.lab")  # fmt: skip
+        refl = rgb.tolist()
     black = None if model.black is None else _box(model.black.box, file, "black.box", size)
     patches = []
     for i, p in enumerate(model.patches):
@@ -212,7 +218,7 @@ def parse_layout(data: Any, *, file: str | os.PathLike | None = None, size: tupl
     return Layout(paper=paper_box, paper_reflectance=np.asarray(refl, np.float64), black=black,
                   patches=tuple(patches), name=model.name.strip() if model.name else None,
                   path=None if file is None else os.fspath(file), references=refs,
-                  paper_default=model.paper.reflectance is None)  # fmt: skip
+                  paper_default=model.paper.reflectance is None and model.paper.lab is None)  # fmt: skip
 
 
 def _reference_lab(r: Any) -> np.ndarray:

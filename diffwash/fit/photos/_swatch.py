@@ -37,6 +37,7 @@ from ..._errors import DiffwashError
 from ..._io import read_image
 from ..._regions import Posterior
 from ...library import Library, library_from_pigments
+from ...shading import DEFAULT_PAPER
 from ...pigments import Pigment
 from .._kmfit import FitModel, Rows, fit_rows, log_sd, pad_rows, paired_start, predict_jit, single_ground_start
 from .._kmfit import delta_e_displayed, starts_for
@@ -417,6 +418,10 @@ def _measure(photo: Any, layout: Any, checker: bool = False, tone_curve: str = "
         cal = calibrate_references(display, bits, L, cal, raw=raw, file=L.path or photo_path, extra=extra)
     elif not raw:
         cal = replace(cal, notes=cal.notes + [note])
+    if L.paper_default and cal.camera is None:
+        cal = replace(cal, notes=cal.notes + [
+            f"the paper box's colour was not given: taken as diffwash's paper {tuple(DEFAULT_PAPER)} (a cream "
+            f"watercolour paper); give the layout's paper.reflectance or paper.lab if it is another white"])  # fmt: skip
     steps = jpeg_steps(photo_path)
     paper = patch_stats(linear, display, bits, cal, L.paper, steps, reference=True)
     if cal.camera is not None and L.paper_default:  # the paper as the references measure it

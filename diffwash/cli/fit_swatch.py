@@ -143,6 +143,12 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
     print(f"  K = {np.round(p.K, 4).tolist()}, S = {np.round(p.S, 4).tolist()} per coat")
     for line in fit.interval_lines():
         print(f"  {line}")
+    post = fit.posterior()
+    if post is not None:
+        r = post.record
+        print(f"  90% regions of predict: model error (CIELAB units per axis) single {post.model_error['single']:.2f} "
+              f"(the patches' measurement {r['measurement']['per_axis']:.2f}, the fit's residuals "
+              f"{r['residual_per_axis']:.2f})")  # fmt: skip
     status = "converged" if fit.converged else "did not converge"
     print(f"  mean CIEDE2000 {fit.mean_delta_e:.2f}; Levenberg-Marquardt {status} in {fit.iterations} steps")
     for c in fit.calibrations:

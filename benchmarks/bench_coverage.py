@@ -13,6 +13,8 @@ paper and over the black band. Then, against the truth the generator used:
 2. **Coverage of 90% intervals**: how often `SwatchFit.intervals(0.9)` holds the true K and S (per channel: 6
    per card), and `SwatchFit.predict_interval` the true linear colour at the unseen coats (per channel).
    One-sided intervals count where the fit reports a bound. Calibrated intervals hold the truth ~90% of the time.
+   And how often the 90% region of the library the fit writes (`SwatchFit.library`, what `diffwash predict`
+   reads: `de2000_90`) holds the true colour at those coats, over the library's grounds.
 
 Camera faults (`diffwash.swatchcard.CameraEffects`; the defaults are a typical phone photo):
 
@@ -104,18 +106,27 @@ def evaluate(mods, folder: Path, family: str, effects, layout: str, seed: int, n
         sd = np.concatenate([fit.log_sd["log_K"], fit.log_sd["log_S"]])
         lo, hi = np.exp(est - 1.645 * sd), np.exp(est + 1.645 * sd)
         reason = [""] * 6
-    de, inside = [], []
+    de, inside, rows = [], [], []
     for c in (c for c in UNSEEN if c not in coats):
-        for ground in (card.paper, card.ink):
+        for ground, gname in ((card.paper, "paper"), (card.ink, "black")):
             R, T = km.layer(np.asarray(p.K), np.asarray(p.S), c)
             t = np.asarray(km.over(R, T, ground), np.float64)
             de.append(float(delta_e_displayed(fit.predict([c], ground)[0], t)))
+            rows.append((c, gname, t))
             if hasattr(fit, "predict_interval"):
                 plo, phi = fit.predict_interval([c], ground, 0.9)
                 inside.extend(((plo[0] <= t) & (t <= phi[0])).tolist())
+    region, radius = [], []
+    lib = fit.library if hasattr(fit, "posterior") else None  # the library fit-swatch writes, with its regions
+    if lib is not None and lib.posterior is not None:
+        pred = lib.predict([fit.pigment.name] * len(rows), [r[0] for r in rows], [r[1] for r in rows])
+        radius = [float(v) for v in pred.de2000_90]
+        err = delta_e_displayed(pred.linear_srgb, np.array([r[2] for r in rows]))
+        region = [bool(e <= r) for e, r in zip(np.atleast_1d(err), radius)]
     return {"family": family, "layout": layout, "seed": seed, "pigment": name, "de": float(np.mean(de)),
             "de_max": float(np.max(de)), "converged": bool(fit.converged), "seconds": seconds,
-            "param_inside": ((lo <= truth) & (truth <= hi)).tolist(), "reason": reason, "colour_inside": inside}  # fmt: skip
+            "param_inside": ((lo <= truth) & (truth <= hi)).tolist(), "reason": reason, "colour_inside": inside,
+            "region_inside": region, "radius": radius}  # fmt: skip
 
 
 def report(results: list[dict], names: list[str], fams: list[str]) -> None:
@@ -139,16 +150,21 @@ def report(results: list[dict], names: list[str], fams: list[str]) -> None:
           f"{sum(not r['converged'] for r in results)} of {len(results)}; mean fit time "
           f"{mean(results, 'seconds'):.2f} s\n")  # fmt: skip
     print("Coverage of 90% intervals (share of true values inside)\n")
-    print("| camera fault | K | S | colour at unseen coats | parameters reported as bounds |")
-    print("| --- | ---: | ---: | ---: | ---: |")
+    print("| camera fault | K | S | colour at unseen coats | the library's de2000_90 (mean radius) | parameters reported "
+          "as bounds |")  # fmt: skip
+    print("| --- | ---: | ---: | ---: | ---: | ---: |")
     for f in fams + ["all"]:
         rows = [r for r in results if f == "all" or r["family"] == f]
         P = np.array([r["param_inside"] for r in rows], bool)
         C = np.concatenate([np.asarray(r["colour_inside"], bool) for r in rows])
+        G = np.concatenate([np.asarray(r.get("region_inside", []), bool) for r in rows])
+        rad = np.concatenate([np.asarray(r.get("radius", []), np.float64) for r in rows])
         bounds = np.mean([x != "" for r in rows for x in r["reason"]])
         col = f"{100 * C.mean():.1f}%" if C.size else "n/a"
+        reg = f"{100 * G.mean():.1f}% ({rad.mean():.2f})" if G.size else "n/a"
         label = f"**{f}**" if f == "all" else f
-        print(f"| {label} | {100 * P[:, :3].mean():.1f}% | {100 * P[:, 3:].mean():.1f}% | {col} | {100 * bounds:.1f}% |")
+        print(f"| {label} | {100 * P[:, :3].mean():.1f}% | {100 * P[:, 3:].mean():.1f}% | {col} | {reg} | "
+              f"{100 * bounds:.1f}% |")  # fmt: skip
     print()
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import gc
 import os
 import threading
 import zlib
@@ -22,7 +23,37 @@ from typing import Any
 import jax
 import numpy as np
 
-__all__ = ["leaf_key", "tree_key", "same_arrays", "LRU", "enable_compilation_cache"]
+__all__ = ["leaf_key", "tree_key", "same_arrays", "LRU", "enable_compilation_cache", "relieve_compiled_programs"]
+
+#: The share of the system's memory maps a process may hold before `relieve_compiled_programs` drops JAX's
+#: compiled programs.
+MAP_SHARE = 0.5
+
+
+def relieve_compiled_programs(share: float = MAP_SHARE) -> bool:
+    """Drop JAX's in-memory compiled programs when this process holds more than `share` of the memory maps
+    the system allows (Linux's `vm.max_map_count`, 65530 by default). Returns whether it did.
+
+    XLA's CPU backend maps each compiled program's code and data in small regions of their own, which live as
+    long as the program stays cached: a mixture fit with its posterior holds hundreds. A process that fits
+    many tables (a notebook, a benchmark, a test worker) reaches the limit, and the next compilation cannot
+    map its code: the process dies inside XLA's compiler. The fits call this before they compile. Dropped
+    programs are compiled again when next used (from the persistent cache, `enable_compilation_cache`, where
+    it is on).
+    """
+    try:
+        with open("/proc/self/maps", "rb") as f:
+            held = sum(chunk.count(b"\n") for chunk in iter(lambda: f.read(1 << 20), b""))
+        with open("/proc/sys/vm/max_map_count") as f:
+            limit = int(f.read())
+    except (OSError, ValueError):
+        return False
+    if held <= share * limit:
+        return False
+    jax.clear_caches()
+    gc.collect()
+    return True
+
 
 _local = threading.local()
 

@@ -10,6 +10,10 @@ The test process itself keeps JAX's persistent cache off, also for the commands 
 segmentation fault inside JAX 0.10.2's cache writer (`compilation_cache.put_executable_and_time`, serialising
 a mixture fit's program), in two CI runs; neither run of the same tests alone, nor 12 fresh processes of the
 same fit, reproduced it. Within one process JAX's in-memory caches already find every program compiled.
+Later such deaths (inside XLA's compiler, in the same late test of three CI runs in a row) had one cause:
+the worker's memory maps (XLA's CPU backend maps each compiled program's code in regions of its own; a
+process may hold 65530). Five mixture test modules alone left 36,000; `_relieve_compiled_programs` keeps
+them under half.
 """
 
 import os
@@ -99,6 +103,15 @@ def knot_scene(mesh: str, width: int, height: int, shading: str = "per-pixel", *
         **extra,
     }
     return parse_scene(data, base=DATA / "meshes")
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _relieve_compiled_programs():
+    """After each test module, drop JAX's compiled programs if the worker holds half the memory maps the system
+    allows (`diffwash._cache.relieve_compiled_programs`). A worker that had run several hundred tests used to
+    die inside XLA's compiler (a segmentation fault, or an abort) when its maps ran out."""
+    yield
+    diffwash._cache.relieve_compiled_programs()
 
 
 @pytest.fixture

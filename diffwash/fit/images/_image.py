@@ -78,6 +78,7 @@ import numpy as np
 import optimistix as optx
 
 from ... import colorimetry
+from ..._cache import relieve_compiled_programs
 from ..._choices import IMAGE_LOSSES, SOLVERS
 from ..._errors import DiffwashError
 from ..._io import read_image, read_json
@@ -569,6 +570,7 @@ def fit_image(
     solver's step test and the stationarity test both unmet after `max_steps`)
     is reported in the result (`converged`, `message`), not raised.
     """
+    relieve_compiled_programs()  # before this fit compiles: a long-lived process may run out of memory maps
     t_start = time.perf_counter()
     names = parse_fit_list(fit)
     if loss not in IMAGE_LOSSES:

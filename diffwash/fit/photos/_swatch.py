@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ... import colorimetry
+from ..._cache import relieve_compiled_programs
 from ..._errors import DiffwashError
 from ..._io import read_image
 from ..._regions import Posterior
@@ -515,6 +516,7 @@ def fit_swatches(
     pigment, alone or mixed (`swatch_pigments`): those are fitted jointly by
     `fit_swatch_mixtures`.
     """
+    relieve_compiled_programs()  # before this fit compiles: a long-lived process may run out of memory maps
     photos, layouts, measured = _measure_all(photo, layout, checker, tone_curve)
     names = swatch_pigments([m.layout for m in measured], name=name, default=_default_name(photos[0]))
     if len(names) > 1:

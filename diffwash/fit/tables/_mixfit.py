@@ -48,6 +48,7 @@ import optimistix as optx
 from jaxtyping import Array
 
 from ... import _regions, colorimetry, km, mixing, spectral
+from ..._cache import relieve_compiled_programs
 from ...library import Library
 from ...measurements import Measurements
 from . import _pairs, _posterior, _priors, _seen
@@ -553,6 +554,7 @@ def fit_mixtures(
 
     **Returns:** a `MixtureFit` (its `library` ready to save and predict with).
     """
+    relieve_compiled_programs()  # before this fit compiles: a long-lived process may run out of memory maps
     t0 = time.perf_counter()
     say = progress if progress is not None else (lambda msg: None)
     names = m.names

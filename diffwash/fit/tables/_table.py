@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from ... import colorimetry
+from ..._cache import relieve_compiled_programs
 from ..._errors import DiffwashError
 from ..._io import check_float32, open_input
 from ...library import Library, library_from_pigments
@@ -451,6 +452,7 @@ def fit_table(
 
     A `TableFit`: the pigments (K, S per unit thickness) and diagnostics.
     """
+    relieve_compiled_programs()  # before this fit compiles: a long-lived process may run out of memory maps
     batch_mode(batch, 1)  # a bad value fails before any file is read
     if not isinstance(table, MeasurementTable):
         table = read_table(table, linear=linear)

@@ -32,7 +32,7 @@ def test_swatch_card_then_fit_swatch(run_cli, tmp_path, cache):
     r = run_cli("fit-swatch", "card.jpg", "--layout", "card.json", "-o", "rose.json", "--report", "report.png", env=cache)
     assert r.returncode == 0, r.stderr
     assert "mean CIEDE2000" in r.stdout and "both identifiable" in r.stdout and "wrote rose.json" in r.stdout
-    assert "90% regions of predict: model error (CIELAB units per axis) single" in r.stdout
+    assert "90% regions of predict: the posterior above and a model error (CIELAB units per axis) single" in r.stdout
     (tmp_path / "q.csv").write_text("pigment,amount,ground\nQuinacridone Rose,4,paper\n")
     r = run_cli("predict", "rose.json", "--table", "q.csv", "-o", "p.csv", env=cache)
     assert r.returncode == 0, r.stderr

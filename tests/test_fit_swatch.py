@@ -56,7 +56,7 @@ def test_unseen_coats_within_one_ciede2000(tmp_path, name, effects, suffix):
     assert fit.mean_delta_e <= 1.0
     assert "both identifiable" in fit.identifiability
     assert fit.pigment.name == "card"  # the photo's name when neither --name nor the layout gives one
-    # The library it writes predicts the unseen coats with 90% regions that hold them (measured: 20 of 20).
+    # The library it writes predicts the unseen coats with 90% regions that hold them (bench_coverage: 91%).
     truth, pred = [], fit.library.predict(["card"] * 4, [c for c in UNSEEN for _ in (0, 1)], ["paper", "black"] * 2)
     for c in UNSEEN:
         for ground in (card.paper, card.ink):

@@ -145,10 +145,8 @@ def _run_photos(args, out: Path, report: Path | None) -> int:
         print(f"  {line}")
     post = fit.posterior()
     if post is not None:
-        r = post.record
-        print(f"  90% regions of predict: model error (CIELAB units per axis) single {post.model_error['single']:.2f} "
-              f"(the patches' measurement {r['measurement']['per_axis']:.2f}, the fit's residuals "
-              f"{r['residual_per_axis']:.2f})")  # fmt: skip
+        print(f"  90% regions of predict: the posterior above and a model error (CIELAB units per axis) single "
+              f"{post.model_error['single']:.2f}, the calibration's own error")  # fmt: skip
     status = "converged" if fit.converged else "did not converge"
     print(f"  mean CIEDE2000 {fit.mean_delta_e:.2f}; Levenberg-Marquardt {status} in {fit.iterations} steps")
     for c in fit.calibrations:

@@ -104,6 +104,9 @@ class PatchResult:
         return out
 
 
+#: The mean length of a 3-vector of standard normal components: a mean colour error over this is a standard
+#: deviation per CIELAB axis.
+MEAN_OF_CHI3 = 1.596
 #: The standard deviation given to a log K or log S that the photo only bounds or does not determine, in a
 #: library's posterior (`SwatchFit.posterior`): a factor of e either way.
 UNDETERMINED_SD = 1.0
@@ -286,8 +289,11 @@ class SwatchFit:
 
         The covariance of the six logs (calibration included), with a log that the photo only bounds or does
         not determine given a standard deviation of `UNDETERMINED_SD` and no correlation; the amount law's
-        exponent is fixed (1). The model error of a single paint is the patches' own measurement error (their
-        noise and calibration floor, `lab_sd`) and the fit's residuals, in quadrature (CIELAB units per axis).
+        exponent is fixed (1). The model error of a single paint (CIELAB units per axis) is the calibration's
+        own error: the camera model's leave-one-out error, or the assumed tone curve's typical error (mean
+        CIEDE2000, as a standard deviation per axis: / 1.6), 0 for a photo read through the sRGB curve. The
+        patches' noise and the fit's dispersion beyond it are in the posterior already (`Uncertainty`); the
+        calibration's error is shared by every patch, so no number of patches averages it away.
         """
         if self.uncertainty is None:
             return None
@@ -299,14 +305,15 @@ class SwatchFit:
         cov[loose, loose] = UNDETERMINED_SD**2
         w, V = np.linalg.eigh(0.5 * (cov + cov.T))
         F = np.vstack([V * np.sqrt(np.maximum(w, 0.0)), np.zeros((1, 6))])  # + log gamma, fixed
-        measured = np.median([lab_sd(q.observed, np.diag(np.square(q.se))) for q in self.patches if q.se is not None]
-                             or [0.0])  # fmt: skip
+        calibration = max([c.camera.accuracy if c.camera is not None else c.curve_accuracy for c in self.calibrations]
+                          or [0.0]) / MEAN_OF_CHI3  # fmt: skip
         lab = lambda x: np.asarray(colorimetry.linear_srgb_to_lab(np.clip(x, 1e-6, None)), np.float64)  # noqa: E731
         resid = np.array([lab(q.fitted) - lab(q.observed) for q in self.patches])
         residual = float(np.sqrt(np.mean(np.square(resid)))) if len(resid) else 0.0
-        single = float(np.hypot(measured, residual))
-        record = {"single_from": "the patches' median measurement error (noise and calibration floor) and the fit's "
-                  "residuals, in quadrature", "measurement": {"per_axis": round(float(measured), 4)},
+        single = float(calibration)
+        record = {"single_from": "the calibration's own error (the patches' noise and the fit's dispersion are in "
+                  "the posterior)",
+                  "measurement": {"per_axis": round(float(calibration), 4)},
                   "residual_per_axis": round(residual, 4)}  # fmt: skip
         return Posterior(F, np.zeros(7), {"single": single}, (), record)
 

@@ -140,8 +140,8 @@ def camera_named(path: Any) -> str | None:
     try:
         with Image.open(path) as im:
             exif = im.getexif()
-    except (OSError, ValueError, SyntaxError):
-        return None
+    except (OSError, ValueError, SyntaxError, Image.DecompressionBombError):
+        return None  # not an image PIL reads: read_image says why, with the file's name
     words = [str(exif.get(tag, "")).strip("\x00 ") for tag in (0x010F, 0x0110)]  # Make, Model
     name = " ".join(w for w in words if w)
     return name or None

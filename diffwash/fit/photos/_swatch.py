@@ -414,9 +414,7 @@ def _measure(photo: Any, layout: Any, checker: bool = False, tone_curve: str = "
         L = read_layout(layout, size=(W, H))
     else:
         L = parse_layout(layout, size=(W, H))
-    curve, note = default_curve(photo_path, tone_curve)
-    if raw:
-        curve = ToneCurve("linear")
+    curve, note = (ToneCurve("linear"), "") if raw else default_curve(photo_path, tone_curve)
     linear = display if raw else linearise(display, curve)
     cal = calibrate(linear, display, bits, L, file=L.path or photo_path)
     accuracy = CAMERA_CURVE_ACCURACY if curve.kind == "camera" else 0.0

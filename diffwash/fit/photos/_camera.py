@@ -11,8 +11,8 @@ $$ \rho = M\big(g(e) / \ell(x, y)\big) . $$
 
 `g` is a Bernstein polynomial of degree 5 with non-decreasing coefficients
 (so monotone and smooth) and a free value at 0 (a lifted black or flare),
-normalised to 1 at 1; or the sRGB curve (IEC 61966-2-1), or the identity for
-raw photos. `M` is one of colour-science's colour-correction forms:
+normalised to 1 at 1; or the sRGB curve (IEC 61966-2-1), or a typical
+camera's curve (`camera_curve`), or the identity for raw photos. `M` is one of colour-science's colour-correction forms:
 a 3x3 matrix (Cheung 2004, 3 terms), a matrix with an offset (4 terms),
 Finlayson 2015's root-polynomial of degree 2, or a Vandermonde polynomial of
 degree 2. `g` and a 3x3 `M` are fitted together by alternating least squares

@@ -29,11 +29,14 @@ coats as above. A patch without `pigment` is of the card's pigment (the layout's
 `name`). Layouts that together name more than one pigment, or hold a mixture,
 are fitted jointly into a library (`diffwash.fit.fit_swatch_mixtures`).
 
-Calibration. The photo is linearised (the sRGB transfer function), then the
-camera is taken to have recorded `gain_c * light(x, y) * reflectance`:
-`light` (vignetting, uneven lighting) is a smooth surface fitted to the bare
-paper visible around the boxes (a low-order polynomial in x and y of log
-brightness, fitted robustly), normalised to 1 over the paper box;
+Calibration. The photo is linearised (the sRGB transfer function, or a typical
+camera's tone curve when the file names a camera: `diffwash.fit.photos._camera.
+default_curve`), then the camera is taken to have recorded
+`gain_c * light(x, y) * reflectance`: `light` (vignetting, uneven lighting) is
+a smooth surface fitted to the bare paper visible around the boxes (or, where
+none shows, to the bare board around them: the black box's surface; a
+low-order polynomial in x and y of log brightness, fitted robustly),
+normalised to 1 over the paper box;
 `gain_c` (exposure and white balance) makes the paper box read its
 `reflectance`.
 

@@ -313,7 +313,7 @@ class SwatchFit:
         single = float(calibration)
         record = {"single_from": "the calibration's own error (the patches' noise and the fit's dispersion are in "
                   "the posterior)",
-                  "measurement": {"per_axis": round(float(calibration), 4)},
+                  "calibration_per_axis": round(float(calibration), 4),
                   "residual_per_axis": round(residual, 4)}  # fmt: skip
         return Posterior(F, np.zeros(7), {"single": single}, (), record)
 

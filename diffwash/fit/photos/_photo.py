@@ -66,7 +66,8 @@ from ..._errors import DiffwashError
 from ..._io import check_float32, read_json
 from ..._schema import LayoutFile, name_key, validate
 from ...shading import DEFAULT_PAPER
-from ._camera import CameraModel, ToneCurve, fit_camera, lab_to_linear, needed_references, spectrum_lab
+from ._camera import CAMERA_CURVE_ACCURACY, CameraModel, ToneCurve, fit_camera, lab_to_linear, needed_references
+from ._camera import spectrum_lab
 from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
 
 __all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "patch_paints", "swatch_pigments", "Calibration",
@@ -377,8 +378,8 @@ class Calibration:
     - `pixels`: bare-paper pixels it was fitted to.
     - `light_range`: the smallest and largest relative light over the photo.
     - `size`: the photo's (width, height).
-    - `curve`: the tone curve the photo was read through without references (None: the sRGB curve), and
-      `curve_accuracy` its typical error (mean CIEDE2000), a colour floor on every patch.
+    - `curve`: the tone curve the photo was read through without references (None: the sRGB curve, or a raw
+      photo's identity); its typical error is `curve_accuracy`.
     """
 
     gain: np.ndarray
@@ -393,7 +394,18 @@ class Calibration:
     camera: CameraModel | None = None
     raw: bool = False
     curve: ToneCurve | None = None
-    curve_accuracy: float = 0.0
+
+    @property
+    def curve_accuracy(self) -> float:
+        """The assumed tone curve's typical error (mean CIEDE2000): `CAMERA_CURVE_ACCURACY` for the camera
+        curve, 0 for the sRGB curve."""
+        return CAMERA_CURVE_ACCURACY if self.curve is not None and self.curve.kind == "camera" else 0.0
+
+    @property
+    def accuracy(self) -> float:
+        """The calibration's own error (mean CIEDE2000), which every patch shares: the camera model's
+        leave-one-out error, or the assumed tone curve's."""
+        return self.camera.accuracy if self.camera is not None else self.curve_accuracy
 
     def light(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """Relative light at pixel centres (ys, xs) (1 on average over the paper box)."""
@@ -466,7 +478,7 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
     degree, coef, use, lack, low, high = _surface(ys, xs, y, W, H, degree, pb, step)
     if degree < 2:
         notes.append(f"little bare paper visible around the boxes: light falloff modelled to degree {degree}")
-    if degree > 0 and (lack > MAX_LACK_OF_FIT or low < LIGHT_RANGE[0] or high > LIGHT_RANGE[1]):
+    if degree > 0 and not _plausible(lack, low, high):
         # What looked like bare paper does not follow a plausible smooth light: it is not all paper (a board, a
         # mount, a table around the card). Scaling to the paper box alone is the safer reading.
         notes.append(f"the bare paper around the boxes does not follow a smooth light falloff (it misses by "
@@ -480,8 +492,7 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
         if np.all(bref > 0):
             bys, bxs, by = _paper_samples(linear, display, layout, bb, bref, lo_level, hi_level, own=layout.black)
             board = _surface(bys, bxs, by, W, H, 2, pb, step)
-            b_degree, _, _, b_lack, b_low, b_high = board
-            if b_degree > 0 and b_lack <= MAX_LACK_OF_FIT and LIGHT_RANGE[0] <= b_low and b_high <= LIGHT_RANGE[1]:
+            if board[0] > 0 and _plausible(*board[3:]):
                 degree, coef, use, lack, low, high = board
                 notes = [f"light falloff read from the bare board around the boxes (the black box's surface), "
                          f"degree {degree}"]  # fmt: skip
@@ -501,6 +512,11 @@ def calibrate(linear: np.ndarray, display: np.ndarray, bits: int, layout: Layout
 #: The light falloff's plausible range over the photo, relative to the paper box (outside it, what was taken for
 #: bare paper is something else).
 LIGHT_RANGE = (0.5, 1.6)
+
+
+def _plausible(lack: float, low: float, high: float) -> bool:
+    """A light surface that follows its samples (`MAX_LACK_OF_FIT`) and stays in a plausible range (`LIGHT_RANGE`)."""
+    return lack <= MAX_LACK_OF_FIT and LIGHT_RANGE[0] <= low and high <= LIGHT_RANGE[1]
 
 
 def _surface(ys: np.ndarray, xs: np.ndarray, y: np.ndarray, W: int, H: int, degree: int, pb: Box, step: int
@@ -672,10 +688,8 @@ def patch_stats(linear: np.ndarray, display: np.ndarray, bits: int, cal: Calibra
     clipped_hi = np.mean(raw >= hi_level, axis=(0, 1))
     noise = pixel_noise(values, raw, scale, bits, clipped_lo, clipped_hi, jpeg, reference, floor_noise)
     cov = noise.cov
-    if cal.camera is not None:  # the camera model's own error (leave-one-out over the references) as a colour floor
-        cov = cov + np.diag(np.square(camera_floor(noise.value, cal.camera.accuracy)))
-    elif cal.curve_accuracy > 0:  # the assumed tone curve's typical error, likewise
-        cov = cov + np.diag(np.square(camera_floor(noise.value, cal.curve_accuracy)))
+    if cal.accuracy > 0:  # the camera model's leave-one-out error, or the assumed tone curve's, as a colour floor
+        cov = cov + np.diag(np.square(camera_floor(noise.value, cal.accuracy)))
     return PatchStats(rgb=noise.value, spread=noise.spread, clipped_lo=clipped_lo, clipped_hi=clipped_hi,
                       pixels=int(ys.size), cov=cov, pixels_per_sample=noise.pixels_per_sample,
                       interval=noise.interval, floor=noise.floor)  # fmt: skip

@@ -45,7 +45,7 @@ from .._kmfit import delta_e_displayed, starts_for
 from ._noise import camera_noise_floor, jpeg_steps
 from ._noisefit import Observations, Uncertainty, fit_noise, uncertainty
 from ._noisefit import _prediction_and_jacobian
-from ._camera import CAMERA_CURVE_ACCURACY, RAW_SUFFIXES, ToneCurve, default_curve, find_checker, read_raw
+from ._camera import RAW_SUFFIXES, default_curve, find_checker, read_raw
 from ._photo import Calibration, Layout, PatchStats, calibrate, calibrate_references, inner_box, linearise
 from ._photo import parse_layout, patch_stats
 from ._photo import read_layout, swatch_pigments
@@ -305,8 +305,7 @@ class SwatchFit:
         cov[loose, loose] = UNDETERMINED_SD**2
         w, V = np.linalg.eigh(0.5 * (cov + cov.T))
         F = np.vstack([V * np.sqrt(np.maximum(w, 0.0)), np.zeros((1, 6))])  # + log gamma, fixed
-        calibration = max([c.camera.accuracy if c.camera is not None else c.curve_accuracy for c in self.calibrations]
-                          or [0.0]) / MEAN_OF_CHI3  # fmt: skip
+        calibration = max([c.accuracy for c in self.calibrations] or [0.0]) / MEAN_OF_CHI3
         lab = lambda x: np.asarray(colorimetry.linear_srgb_to_lab(np.clip(x, 1e-6, None)), np.float64)  # noqa: E731
         resid = np.array([lab(q.fitted) - lab(q.observed) for q in self.patches])
         residual = float(np.sqrt(np.mean(np.square(resid)))) if len(resid) else 0.0
@@ -414,11 +413,9 @@ def _measure(photo: Any, layout: Any, checker: bool = False, tone_curve: str = "
         L = read_layout(layout, size=(W, H))
     else:
         L = parse_layout(layout, size=(W, H))
-    curve, note = (ToneCurve("linear"), "") if raw else default_curve(photo_path, tone_curve)
+    curve, note = (None, "") if raw else default_curve(photo_path, tone_curve)
     linear = display if raw else linearise(display, curve)
-    cal = calibrate(linear, display, bits, L, file=L.path or photo_path)
-    accuracy = CAMERA_CURVE_ACCURACY if curve.kind == "camera" else 0.0
-    cal = replace(cal, raw=raw, curve=None if raw else curve, curve_accuracy=accuracy)
+    cal = replace(calibrate(linear, display, bits, L, file=L.path or photo_path), raw=raw, curve=curve)
     extra = find_checker(display, file=photo_path) if checker else None
     if L.references or extra is not None:
         cal = calibrate_references(display, bits, L, cal, raw=raw, file=L.path or photo_path, extra=extra)

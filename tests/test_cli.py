@@ -89,3 +89,22 @@ def test_main_leaves_the_environment_as_it_found_it(monkeypatch, capsys):
     monkeypatch.setenv("MPLBACKEND", "pdf")
     assert main(["pigments"]) == 0
     assert os.environ["MPLBACKEND"] == "pdf"
+    for level in (None, "1", "0"):  # unset; what `import jax` sets; the caller's own
+        if level is None:
+            monkeypatch.delenv("TF_CPP_MIN_LOG_LEVEL", raising=False)
+        else:
+            monkeypatch.setenv("TF_CPP_MIN_LOG_LEVEL", level)
+        seen = []
+        monkeypatch.setattr("diffwash.cli._main", lambda argv: seen.append(os.environ.get("TF_CPP_MIN_LOG_LEVEL")) or 0)
+        assert main(["pigments"]) == 0
+        assert seen == ["0" if level == "0" else "3"] and os.environ.get("TF_CPP_MIN_LOG_LEVEL") == level
+
+
+def test_a_command_run_from_a_jax_process_writes_only_its_own_line_from_a_warm_cache(run_cli, tmp_path):
+    """jaxlib 0.9 logs two lines per program it loads from the compilation cache; a command started from a
+    process that imported JAX (which sets TF_CPP_MIN_LOG_LEVEL=1) inherits that level: `main` raises it."""
+    env = {"TF_CPP_MIN_LOG_LEVEL": "1", "DIFFWASH_CACHE_DIR": str(tmp_path / "cache")}
+    for _ in range(2):  # the second run loads from the cache
+        r = run_cli("bake", ROOT / "data" / "scenes" / "sphere.json", "-o", tmp_path / "missing" / "lut.png", "--size",
+                    "4", env=env)  # fmt: skip
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr

@@ -114,15 +114,25 @@ def _command_arguments(name: str) -> Callable[[argparse.ArgumentParser], None]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    # The commands draw figures into files only: no GUI backend (matplotlib reads this when first imported).
-    # Set for this call only: a caller's later subprocesses (a notebook kernel, say) must not inherit it.
-    backend_before = os.environ.get("MPLBACKEND")
+    # Set for this call only (a caller's later subprocesses, a notebook kernel say, must not inherit them), where
+    # the caller has not; each is read when its library is first imported:
+    # - the commands draw figures into files only: no GUI backend for matplotlib;
+    # - jaxlib 0.9 logs two lines to standard error for each program it loads from the compilation cache (a
+    #   version it cannot check; "target machine feature +prefer-no-gather is not supported", a tuning attribute
+    #   of this same machine, not an instruction set): they would bury a command's own one-line messages. "1" is
+    #   what `import jax` sets in any process that imports it, and so what a command run from one inherits.
+    before = {k: os.environ.get(k) for k in ("MPLBACKEND", "TF_CPP_MIN_LOG_LEVEL")}
     os.environ.setdefault("MPLBACKEND", "Agg")
+    if before["TF_CPP_MIN_LOG_LEVEL"] in (None, "1"):
+        os.environ["TF_CPP_MIN_LOG_LEVEL"] = "3"
     try:
         return _main(argv)
     finally:
-        if backend_before is None:
-            os.environ.pop("MPLBACKEND", None)
+        for k, v in before.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def _main(argv: Sequence[str] | None) -> int:

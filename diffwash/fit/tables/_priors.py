@@ -100,6 +100,10 @@ LEVEL_POP = 0.63
 #: leave free.
 LEVEL = 0.0
 LEVEL_SPREAD = 1.5
+#: The spread (natural log) of the weakly measured pigments' mean scattering shape in one band around their mean
+#: level: how far the peers' common log S t in a band may stray from their level. Weak; with many bands it ties
+#: the levels (and so `LEVEL`) to the layers' scattering.
+COMMON_SPREAD = 1.0
 #: The model error (CIELAB units per axis) of a mixture predicted from a table that holds no mixture at all, where
 #: no fold of the table can measure it (`diffwash.fit.tables._mixfit._model_errors`): the NTU watercolours' with each paint
 #: once at 0.06 mL (13 rows), the error that makes the 90% regions hold 90% of their 198 mixtures at 0.06 mL (6.87;
@@ -178,16 +182,19 @@ def table_priors(A: np.ndarray, G: np.ndarray, on: bool = True) -> TablePriors:
 
 
 def scatter_weak(log_s, log_gamma, level, priors: TablePriors, scale: float):
-    """Per-band residuals (B, n) of the weakly measured pigments' scattering shape (`TablePriors`): their measured
-    layers' scattering depths `log S + gamma log(a / a0)` (invariant to trading the amount law against K and S,
-    which one amount leaves free) less each one's `level` (a latent, shape (n,)), against the mean of the same
-    over those pigments in the band (spread `SCATTER_PRIOR`); none (B, 0) when fewer than two pigments are weakly
-    measured. `log_s` (B, P), `log_gamma` (P,)."""
+    """Per-band residuals (B, n + 1) of the weakly measured pigments' scattering shape (`TablePriors`): their
+    measured layers' scattering depths `log S + gamma log(a / a0)` (invariant to trading the amount law against K
+    and S, which one amount leaves free) less each one's `level` (a latent, shape (n,)), against the mean of the
+    same over those pigments in the band (spread `SCATTER_PRIOR`); and that mean itself (spread `COMMON_SPREAD`),
+    which ties the levels to the layers' scattering (without it, moving every level at once changed nothing, and
+    `LEVEL` held nothing). None (B, 0) when fewer than two pigments are weakly measured. `log_s` (B, P),
+    `log_gamma` (P,)."""
     w = np.asarray(priors.scatter_weak, int)
     if len(w) < 2:
         return jnp.zeros(log_s.shape[:-1] + (0,), log_s.dtype)
     shape = log_s[:, w] + jnp.exp(log_gamma[w]) * jnp.asarray(priors.log_amount, log_s.dtype)[w] - level
-    return scale * (shape - jnp.mean(shape, axis=-1, keepdims=True)) / SCATTER_PRIOR
+    common = jnp.mean(shape, axis=-1, keepdims=True)  # (B, 1): the peers' mean shape in the band
+    return scale * jnp.concatenate([(shape - common) / SCATTER_PRIOR, common / COMMON_SPREAD], axis=-1)
 
 
 def scatter_level(level, priors: TablePriors, scale: float):

@@ -28,7 +28,11 @@ spreads above, the rows themselves say which pigments they cannot pin, and only 
   glaze stack, fixes its colour there, not its K and S apart: its log S per band is held near the table's mean
   in that band with the spread `SCATTER_PRIOR` (a one-constant K/S average is that prior at spread 0), and the
   mean scattering depth of such pigments' measured layers, $\overline{\log S_i t_i(a_i)}$, near `LEVEL`
-  (spread `LEVEL_SPREAD`), which only decides where no row does (every paint opaque).
+  (spread `LEVEL_SPREAD`), which only decides where no row does (every paint opaque). The peers' mean shape in
+  each band is itself held near 0 (spread `COMMON_SPREAD`): that is what ties the levels to the layers'
+  scattering. Without it (until 2026-11-27) the levels could all move at once without changing a residual, and
+  what no row decided was held at the fit's start, S = 1 per unit of amount: a table written in mL and the same
+  in coats predicted glaze stacks up to 3 CIEDE2000 apart.
 
 Pigments at several amounts (the NTU tables) get none of this: their fits are unchanged.
 

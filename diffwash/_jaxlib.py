@@ -15,11 +15,12 @@ anyway (installed with `--no-deps`, or pinned by another package) gets one warni
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import re
 import warnings
-from importlib import metadata
 
-__all__ = ["DEADLOCKING", "deadlocks", "warn_if_deadlocking"]
+__all__ = ["DEADLOCKING", "deadlocks", "installed_version", "warn_if_deadlocking"]
 
 #: The jaxlib releases `[first, end)` whose CPU LAPACK kernels fan their batch out onto the pool they run on.
 DEADLOCKING = ((0, 10, 0), (0, 11, 2))
@@ -32,14 +33,25 @@ def deadlocks(version: str) -> bool:
     return DEADLOCKING[0] <= release < DEADLOCKING[1]
 
 
-def warn_if_deadlocking() -> None:
-    """One `RuntimeWarning` when the installed jaxlib is one of `DEADLOCKING` (reads its metadata only:
-    JAX is not imported)."""
+def installed_version() -> str | None:
+    """The installed jaxlib's version, without importing it: read from its `version.py` (every jaxlib release has
+    one; about 1 ms, where importing `importlib.metadata` to ask would make `import diffwash` six times slower).
+    None where jaxlib is not installed or that file does not say."""
+    spec = importlib.util.find_spec("jaxlib")
+    if spec is None or spec.origin is None:
+        return None
     try:
-        version = metadata.version("jaxlib")
-    except metadata.PackageNotFoundError:
-        return
-    if deadlocks(version):
+        with open(os.path.join(os.path.dirname(spec.origin), "version.py"), encoding="utf-8") as f:
+            found = re.search(r'^_version\s*=\s*"([^"]+)"', f.read(), re.M)
+    except OSError:
+        found = None
+    return found.group(1) if found else None
+
+
+def warn_if_deadlocking() -> None:
+    """One `RuntimeWarning` when the installed jaxlib is one of `DEADLOCKING` (JAX is not imported)."""
+    version = installed_version()
+    if version is not None and deadlocks(version):
         warnings.warn(f"jaxlib {version} can hang for ever on the CPU when batched linear solves run at once "
                       "(diffwash's table fits do); install diffwash's supported jaxlib: "
                       "pip install 'jax<0.10' 'jaxlib<0.10'", RuntimeWarning, stacklevel=3)

@@ -11,7 +11,7 @@ import pytest
 
 from diffwash import colorimetry, measurements, spectral
 from diffwash.fit import fit_mixtures, uncertainty_lines
-from diffwash.fit.tables import _priors
+from diffwash.fit.tables import _posterior, _priors
 
 WL = np.arange(400.0, 701.0, 20.0)
 
@@ -157,3 +157,49 @@ def test_what_the_rows_leave_free_does_not_depend_on_the_unit_of_amount(case, tm
     lab = [f.library.predict(stacks, [x] * len(stacks), ["white"] * len(stacks)).lab for f, x in
            zip(fits, ("1/1", "0.05/0.05"))]  # fmt: skip
     assert float(np.max(colorimetry.delta_e_2000(lab[0], lab[1]))) < 0.5
+
+
+@pytest.mark.parametrize("n, bands", [(1, 3), (2, 5), (5, 7), (13, 4)])
+def test_the_prior_variance_of_a_weak_pigments_scattering_is_that_of_the_priors_own_residuals(n, bands):
+    """What a fit's rows added to a weakly measured pigment's scattering is measured against the priors' variance
+    (`_mixfit._from_priors`): `scatter_prior_variance` is the mean over bands of log S's variance under the priors'
+    residuals alone (`scatter_weak`, `scatter_level`), the other pigments' parameters given: the inverse of the
+    pigment's own block of their Gauss-Newton matrix, here in float64. (The formula it replaces, 0.745 for any n,
+    left out the common shape's and the mean level's spreads: 1.32 for two pigments.)"""
+    import jax
+    import jax.numpy as jnp
+
+    pri = _priors.TablePriors(scatter_weak=tuple(range(n)), log_amount=(0.3,) * n)
+
+    def res(x):
+        log_s, level = x[: n * bands].reshape(bands, n), x[n * bands :]
+        return jnp.concatenate([_priors.scatter_weak(log_s, jnp.zeros(n), level, pri, 1.0).ravel(),
+                                _priors.scatter_level(level, pri, 1.0)])  # fmt: skip
+
+    J = np.asarray(jax.jacfwd(res)(jnp.zeros(n * bands + n, jnp.float64)))  # float64: the suite's default
+    own = np.r_[np.arange(bands) * n + n - 1, n * bands + n - 1]  # the last pigment's log S per band, its level
+    H = (J.T @ J)[np.ix_(own, own)]
+    if n == 1:  # no shape prior holds a pigment alone: its log S is held by nothing, the variance a yardstick only
+        assert np.linalg.matrix_rank(H) < len(own)
+        return
+    var = np.diag(np.linalg.inv(H))[:bands].mean()
+    assert _priors.scatter_prior_variance(n) == pytest.approx(var, rel=1e-9)
+
+
+def test_the_fit_record_names_every_spread_that_holds_scattering(case):
+    _, fit, _, _ = case
+    rec = fit.library.fit["priors"]
+    assert rec["scatter_common_spread"] == _priors.COMMON_SPREAD
+    assert (rec["scatter_level_centre"], rec["scatter_level_centre_spread"]) == (_priors.LEVEL, _priors.LEVEL_SPREAD)
+
+
+def test_what_the_report_says_the_prior_decided_it_reports_as_undetermined(case):
+    """A paint measured once over two light grounds: its scattering is named as the prior's, and its reported
+    posterior sd of log S says so too (> 0.5). The regions' covariance, bounded by each paint's two rows, had
+    squeezed it to about 0.05: "log S 0.05; from the prior: scattering". The noise scale is at least the one the
+    one-amount priors are weighed against."""
+    _, fit, _, _ = case
+    u = fit.library.fit["uncertainty"]
+    held = [r for r in u["pigments"] if "scattering" in r.get("priors", [])]
+    assert held and all(r["sd_log_S"] > _posterior.FREE_SD for r in held), [r["sd_log_S"] for r in held]
+    assert u["noise_log_reflectance"] >= _priors.PRIOR_NOISE

@@ -633,6 +633,11 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
         theta = _posterior._theta_index(int(band.shape[0]), P, model.gamma)
         F, diag, sigma = band_covariance(spectral, (band, shared), len(m), theta, _posterior.RANK)
         F, diag = _theta_padded(F, diag, int(band.shape[0]), P)
+    if (priors.scatter_weak or (model.gamma and priors.gamma_fixed)) and sigma < _priors.PRIOR_NOISE:
+        # The fit weighed the one-amount priors against rows of noise PRIOR_NOISE: a paint's rows fix its parameters
+        # almost exactly, so their residuals cannot tell their noise. The posterior is that objective's, at that
+        # noise: at the residuals' own (0.003 on a generated table) the rows' ground contrast pinned log S to 0.05.
+        F, diag, sigma = F * (_priors.PRIOR_NOISE / sigma), diag * (_priors.PRIOR_NOISE / sigma) ** 2, _priors.PRIOR_NOISE
     from_prior = _from_priors(priors, F, diag, sigma, int(band.shape[0]), P, model)
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(measured_lab(m, obs), dtype), band, float(model.ridge),
                         _SharedPrior(P, model, priors), basis=_refine_basis(obs, model, dtype))  # fmt: skip
@@ -671,7 +676,10 @@ def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: 
     scale, counts, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit, held_seen)
     dark = (An.sum(axis=1) > 0) & (Gn.mean(axis=1) < _priors.DARK)[:, None]  # (N, P): a paint over a dark ground
     over_dark = {n for i, n in enumerate(names) if dark[:, i].any()}
-    report = _posterior.pigment_report(F, diag, names, B, {n for p in pairs(m) for n in p}, over_dark, m.spectral)
+    # What the rows and priors determined is the Laplace covariance's, before the bound by each pigment's own rows:
+    # that bound calibrates the regions, and it squeezes the directions those rows cannot see as well (a paint
+    # measured once over two light grounds was reported "log S 0.05; from the prior: scattering").
+    report = _posterior.pigment_report(*laplace[:2], names, B, {n for p in pairs(m) for n in p}, over_dark, m.spectral)
     record = {**record, "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
               "model_error": {k: round(v, 4) for k, v in scale.items()}, "rows": counts, **how,
               "pigments": _mark_priors(report, from_prior)}  # fmt: skip
@@ -812,7 +820,9 @@ def _from_priors(priors: _priors.TablePriors, F, diag, sigma: float, B: int, P: 
         for i in priors.gamma_fixed:
             out.setdefault(i, []).append("amount law")
     var = np.sum(F * F, axis=1) + diag
-    prior_var = (_priors.SCATTER_PRIOR**2 + _priors.LEVEL_POP**2) * (sigma / _priors.PRIOR_NOISE) ** 2
+    if not priors.scatter_weak:
+        return out
+    prior_var = _priors.scatter_prior_variance(len(priors.scatter_weak)) * (sigma / _priors.PRIOR_NOISE) ** 2
     for i in priors.scatter_weak:
         if np.mean(var[P * B + i * B : P * B + (i + 1) * B]) > FROM_PRIOR * prior_var:
             out.setdefault(i, []).append("scattering")

@@ -61,7 +61,7 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = ["GAMMA_SPREAD", "SCATTER_SPREAD", "scatter_population", "gamma_population", "TablePriors", "table_priors",
-           "GAMMA_PRIOR", "GAMMA_PRIOR_SD", "SCATTER_PRIOR"]
+           "GAMMA_PRIOR", "GAMMA_PRIOR_SD", "SCATTER_PRIOR", "scatter_prior_variance"]
 
 #: $\tau_S$: spread of a pigment's log S around the table's mean log S in the same band (natural log units).
 SCATTER_SPREAD = 0.0
@@ -155,7 +155,27 @@ class TablePriors:
         weak = [names[i] for i in self.scatter_weak] if spectral else []
         return {"amount_law_at_prior": [names[i] for i in self.gamma_fixed] if gamma else [],
                 "gamma_prior": GAMMA_PRIOR, "gamma_prior_sd": GAMMA_PRIOR_SD, "scattering_held_by_population": weak,
-                "scatter_shape_spread": SCATTER_PRIOR, "scatter_level_spread": LEVEL_POP}  # fmt: skip
+                "scatter_shape_spread": SCATTER_PRIOR, "scatter_level_spread": LEVEL_POP,
+                "scatter_common_spread": COMMON_SPREAD, "scatter_level_centre": LEVEL,
+                "scatter_level_centre_spread": LEVEL_SPREAD}  # fmt: skip
+
+
+def scatter_prior_variance(n: int) -> float:
+    r"""The variance (natural log, squared) of one band's log S of a weakly measured pigment under the priors alone
+    (`scatter_weak` and `scatter_level`, `n` >= 1 such pigments, in the priors' own scale), its peers' parameters
+    given: what the population says of this pigment before its own rows do. Its shape $x$ about its peers' and its
+    level $\ell$ about theirs are independent, with precisions
+
+    $$ h_x = \frac{1 - 1/n}{\tau_{shape}^2} + \frac{1}{n^2 \tau_{common}^2}, \qquad
+       h_\ell = \frac{1 - 1/n}{\tau_{level}^2} + \frac{1}{n^2 \tau_{LEVEL}^2}, $$
+
+    and log S = x + \ell: the variance is $1/h_x + 1/h_\ell$ (0.764 for 40 pigments; 0.745, `SCATTER_PRIOR`^2 +
+    `LEVEL_POP`^2, for many). What a fit's rows add to a pigment is measured against it (`_mixfit._from_priors`).
+    A pigment alone (`n` = 1) has no shape prior (`scatter_weak` holds it only with a peer): the value is then a
+    yardstick of the same size, not a prior's variance."""
+    h_x = (1 - 1 / n) / SCATTER_PRIOR**2 + 1 / (n * n * COMMON_SPREAD**2)
+    h_level = (1 - 1 / n) / LEVEL_POP**2 + 1 / (n * n * LEVEL_SPREAD**2)
+    return 1 / h_x + 1 / h_level
 
 
 def _distinct(values) -> int:

@@ -676,10 +676,15 @@ def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: 
     scale, counts, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit, held_seen)
     dark = (An.sum(axis=1) > 0) & (Gn.mean(axis=1) < _priors.DARK)[:, None]  # (N, P): a paint over a dark ground
     over_dark = {n for i, n in enumerate(names) if dark[:, i].any()}
-    # What the rows and priors determined is the Laplace covariance's, before the bound by each pigment's own rows:
-    # that bound calibrates the regions, and it squeezes the directions those rows cannot see as well (a paint
-    # measured once over two light grounds was reported "log S 0.05; from the prior: scattering").
-    report = _posterior.pigment_report(*laplace[:2], names, B, {n for p in pairs(m) for n in p}, over_dark, m.spectral)
+    report = _posterior.pigment_report(F, diag, names, B, {n for p in pairs(m) for n in p}, over_dark, m.spectral)
+    # A paint whose scattering the one-amount priors decided is reported at the Laplace covariance's, before the
+    # bound by its own rows: that bound calibrates the regions, and it squeezes the directions those rows cannot
+    # see as well (a paint measured once over two light grounds was reported "log S 0.05; from the prior:
+    # scattering"). The prior gives those directions their curvature; elsewhere (a paint fitted to S near 0, flat
+    # there: a Laplace sd of 42) the bounded covariance says more.
+    laplace_report = _posterior.pigment_report(*laplace[:2], names, B, {n for p in pairs(m) for n in p}, over_dark,
+                                               m.spectral)  # fmt: skip
+    report = [laplace_report[i] if "scattering" in from_prior.get(i, []) else r for i, r in enumerate(report)]
     record = {**record, "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
               "model_error": {k: round(v, 4) for k, v in scale.items()}, "rows": counts, **how,
               "pigments": _mark_priors(report, from_prior)}  # fmt: skip

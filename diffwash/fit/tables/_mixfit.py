@@ -637,7 +637,8 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
         # The fit weighed the one-amount priors against rows of noise PRIOR_NOISE: a paint's rows fix its parameters
         # almost exactly, so their residuals cannot tell their noise. The posterior is that objective's, at that
         # noise: at the residuals' own (0.003 on a generated table) the rows' ground contrast pinned log S to 0.05.
-        F, diag, sigma = F * (_priors.PRIOR_NOISE / sigma), diag * (_priors.PRIOR_NOISE / sigma) ** 2, _priors.PRIOR_NOISE
+        up = _priors.PRIOR_NOISE / sigma
+        F, diag, sigma = F * up, diag * up**2, _priors.PRIOR_NOISE
     from_prior = _from_priors(priors, F, diag, sigma, int(band.shape[0]), P, model)
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(measured_lab(m, obs), dtype), band, float(model.ridge),
                         _SharedPrior(P, model, priors), basis=_refine_basis(obs, model, dtype))  # fmt: skip
@@ -676,15 +677,15 @@ def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: 
     scale, counts, how = _model_errors(m, kind, lab_m, pred.lab, draw(np.ones(P)), refit, held_seen)
     dark = (An.sum(axis=1) > 0) & (Gn.mean(axis=1) < _priors.DARK)[:, None]  # (N, P): a paint over a dark ground
     over_dark = {n for i, n in enumerate(names) if dark[:, i].any()}
-    report = _posterior.pigment_report(F, diag, names, B, {n for p in pairs(m) for n in p}, over_dark, m.spectral)
-    # A paint whose scattering the one-amount priors decided is reported at the Laplace covariance's, before the
-    # bound by its own rows: that bound calibrates the regions, and it squeezes the directions those rows cannot
-    # see as well (a paint measured once over two light grounds was reported "log S 0.05; from the prior:
-    # scattering"). The prior gives those directions their curvature; elsewhere (a paint fitted to S near 0, flat
-    # there: a Laplace sd of 42) the bounded covariance says more.
-    laplace_report = _posterior.pigment_report(*laplace[:2], names, B, {n for p in pairs(m) for n in p}, over_dark,
-                                               m.spectral)  # fmt: skip
-    report = [laplace_report[i] if "scattering" in from_prior.get(i, []) else r for i, r in enumerate(report)]
+    # A paint whose scattering the one-amount priors decided is reported at the Laplace covariance's, unbounded by
+    # its own rows: that bound calibrates the regions, and it squeezes the directions those rows cannot see as well
+    # (a paint measured once over two light grounds was reported "log S 0.05; from the prior: scattering"). The
+    # prior gives those directions their curvature; elsewhere (a paint fitted to S near 0, flat there: a Laplace sd
+    # of 42) the bounded covariance says more.
+    unbounded = np.array(["scattering" in from_prior.get(i, []) for i in range(P)])
+    F_rep, diag_rep = _posterior.scaled(*laplace[:2], np.where(unbounded, 1.0, a), owner)
+    report = _posterior.pigment_report(F_rep, diag_rep, names, B, {n for p in pairs(m) for n in p}, over_dark,
+                                       m.spectral)  # fmt: skip
     record = {**record, "covariance_scale": {n: round(float(x), 6) for n, x in zip(names, a)},
               "model_error": {k: round(v, 4) for k, v in scale.items()}, "rows": counts, **how,
               "pigments": _mark_priors(report, from_prior)}  # fmt: skip

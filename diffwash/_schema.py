@@ -254,13 +254,15 @@ class PairTerm(_Part):
         0.0, description="the log factor on K per e-fold of the amount")
     S_amount: Annotated[Number, Field(ge=-PAIR_AMOUNT_MAX, le=PAIR_AMOUNT_MAX)] = Field(
         0.0, description="the log factor on S per e-fold of the amount")
+    inferred: bool = Field(False, description="true: the pair was never measured mixed; its terms were inferred "
+                           "from what its two pigments did in their measured pairs (docs/mixing.md)")
 
 
 class PairTerms(_Part):
     """A library's `"pair_terms"` (docs/mixing.md)."""
 
     basis: PairBasis = Field(description="`{centres, width}`")
-    pairs: list[PairTerm] = Field(description="one per pair measured mixed")
+    pairs: list[PairTerm] = Field(description="one per pair measured mixed, and one per pair whose terms were inferred")
 
 
 class LibraryFile(BaseModel):
@@ -275,8 +277,8 @@ class LibraryFile(BaseModel):
     grounds: dict[str, list[Reflectance]] = Field(min_length=1, description="ground name -> reflectance per band "
                                                   "(0..2), at least one")  # fmt: skip
     surface: Surface = Field(default_factory=Surface, description="`{\"k2\": ...}` (below)")
-    pair_terms: PairTerms | None = Field(None, description="the pair terms of pairs measured mixed "
-                                         "(docs/mixing.md)")  # fmt: skip
+    pair_terms: PairTerms | None = Field(None, description="the pair terms of pairs measured mixed, and those "
+                                         "inferred for pairs that were not (docs/mixing.md)")  # fmt: skip
     fit: dict[str, Any] | None = Field(None, description="the fit's record (not read back)")
 
     @pydantic.model_validator(mode="after")

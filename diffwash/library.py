@@ -287,7 +287,7 @@ def _pair_terms(spec: _schema.PairTerms, names: list[str], obs: spectral.Observa
         raise DiffwashError("pair terms need a spectral library (a band grid)", file=path, field="pair_terms")
     centres = tuple(float(c) for c in spec.basis.centres)
     index = {n: i for i, n in enumerate(names)}
-    members, cols = [], {k: [] for k in ("K_bumps", "S_bumps", "K_amount", "S_amount")}
+    members, inferred, cols = [], [], {k: [] for k in ("K_bumps", "S_bumps", "K_amount", "S_amount")}
     for q, e in enumerate(spec.pairs):
         where = f"pair_terms.pairs[{q}]"
         two = e.pigments
@@ -296,6 +296,8 @@ def _pair_terms(spec: _schema.PairTerms, names: list[str], obs: spectral.Observa
                                 file=path, field=f"{where}.pigments")  # fmt: skip
         i, j = index[two[0]], index[two[1]]
         members.append((min(i, j), max(i, j)))
+        if e.inferred:
+            inferred.append(members[-1])
         for k in ("K_bumps", "S_bumps"):
             if len(getattr(e, k)) != len(centres):
                 raise DiffwashError(f"must be a list of {len(centres)} numbers (one per centre of the basis), got "
@@ -309,7 +311,8 @@ def _pair_terms(spec: _schema.PairTerms, names: list[str], obs: spectral.Observa
            for k, v in cols.items()}  # fmt: skip
     return mixing.PairTerms(members=tuple(members), k_bumps=arr["K_bumps"],
                             s_bumps=arr["S_bumps"], k_amount=arr["K_amount"], s_amount=arr["S_amount"],
-                            centres=centres, width=float(spec.basis.width), wavelengths=obs.wavelengths)  # fmt: skip
+                            centres=centres, width=float(spec.basis.width), wavelengths=obs.wavelengths,
+                            inferred=tuple(inferred))  # fmt: skip
 
 
 def library_from_dict(d: Any, path: Any = None) -> Library:

@@ -156,8 +156,10 @@ class PairTerms(eqx.Module):
     layer of three or more pigments gets each of its measured pairs' terms in
     proportion to $v_i v_j$, so the model is smooth in the amounts. All terms 0 is
     Duncan. Fitted per pair (`diffwash.fit`), they describe what a measured pair
-    did that its pigments alone do not, and say nothing of other pairs
-    (docs/mixing.md measures both).
+    did that its pigments alone do not. A pair never measured mixed whose
+    pigments were each measured mixed with others may carry terms inferred from
+    what those pigments did in their measured pairs (`inferred`; docs/mixing.md
+    measures both).
 
     **Fields:**
 
@@ -166,6 +168,7 @@ class PairTerms(eqx.Module):
     - `k_amount`, `s_amount`: $\kappa^A$, $\sigma^A$, shape `(Q,)`.
     - `centres`, `width`: the bumps' centres and width (nm; static).
     - `wavelengths`: the band grid the bumps are evaluated on (static).
+    - `inferred`: the members whose terms were inferred, not fitted to their own mixtures (static).
     """
 
     members: tuple[tuple[int, int], ...] = eqx.field(static=True)
@@ -176,6 +179,7 @@ class PairTerms(eqx.Module):
     centres: tuple[float, ...] = eqx.field(static=True)
     width: float = eqx.field(static=True)
     wavelengths: tuple[float, ...] = eqx.field(static=True)
+    inferred: tuple[tuple[int, int], ...] = eqx.field(static=True, default=())
 
     def basis(self) -> np.ndarray:
         """The bumps on the band grid, shape (B, n)."""
@@ -206,16 +210,20 @@ class PairTerms(eqx.Module):
         if not keep:
             return None
         k = np.asarray(keep)
-        return PairTerms(members=tuple(tuple(sorted((where[self.members[q][0]], where[self.members[q][1]])))
-                                       for q in keep),
+        pair = lambda q: tuple(sorted((where[self.members[q][0]], where[self.members[q][1]])))  # noqa: E731
+        inferred = set(self.inferred)
+        return PairTerms(members=tuple(pair(q) for q in keep),
                          k_bumps=jnp.asarray(self.k_bumps)[k], s_bumps=jnp.asarray(self.s_bumps)[k],
                          k_amount=jnp.asarray(self.k_amount)[k], s_amount=jnp.asarray(self.s_amount)[k],
-                         centres=self.centres, width=self.width, wavelengths=self.wavelengths)  # fmt: skip
+                         centres=self.centres, width=self.width, wavelengths=self.wavelengths,
+                         inferred=tuple(pair(q) for q in keep if tuple(self.members[q]) in inferred))  # fmt: skip
 
     def to_dict(self, names: tuple[str, ...]) -> dict[str, Any]:
         f = lambda x: np.asarray(x, np.float64).tolist()  # noqa: E731
+        inferred = set(self.inferred)
         pairs = [{"pigments": [names[i], names[j]], "K_bumps": f(self.k_bumps[q]), "S_bumps": f(self.s_bumps[q]),
-                  "K_amount": f(self.k_amount[q]), "S_amount": f(self.s_amount[q])}
+                  "K_amount": f(self.k_amount[q]), "S_amount": f(self.s_amount[q]),
+                  **({"inferred": True} if (i, j) in inferred else {})}
                  for q, (i, j) in enumerate(self.members)]  # fmt: skip
         return {"basis": {"centres": list(self.centres), "width": self.width}, "pairs": pairs}
 

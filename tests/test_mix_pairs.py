@@ -1,5 +1,6 @@
 """Pair terms (diffwash.mixing.PairTerms, diffwash.fit.tables._pairs): what a measured pair does beyond Duncan's sums,
-fitted per pair, used for that pair only, saved in the library and read back."""
+fitted per pair, used for that pair (and to infer pairs never measured: test_mix_inferred_pairs.py), saved in the
+library and read back."""
 
 import dataclasses
 import json

@@ -256,12 +256,15 @@ def test_a_paints_folds_run_as_far_as_the_fit_and_pair_folds_stay_capped(tmp_pat
     lab = np.random.default_rng(0).uniform(20, 80, (len(m), 3))
     calls = []
 
-    def refit(folds, what, **steps):
-        calls.append((what, steps))
+    def refit(folds, what, pairs=False, **steps):
+        calls.append((what, steps, pairs))
         return [lab[t] + 1.0 for t in folds]
 
     scale, rows, how = _mixfit._model_errors(m, kind, lab, lab, np.zeros((8, len(m), 3)), refit)
-    steps = dict(calls)
+    steps = {what: s for what, s, _ in calls}
+    # Only the leave-pairs-out folds predict their held-out pairs with inferred terms, as the fit predicts a pair it
+    # never measured; a paint never mixed has no terms to infer.
+    assert {what: p for what, _, p in calls} == {"leave-pairs-out": True, "leave-one-paint's-mixtures-out": False}
     assert steps["leave-one-paint's-mixtures-out"] == {"steps": _posterior.PAINT_FOLD_STEPS,
                                                        "refine_steps": _posterior.PAINT_FOLD_REFINE_STEPS}  # fmt: skip
     assert _posterior.PAINT_FOLD_STEPS >= 400 and _posterior.PAINT_FOLD_REFINE_STEPS >= 100

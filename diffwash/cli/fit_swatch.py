@@ -56,8 +56,9 @@ def add_arguments(p) -> None:
                    help="spectral table: after the log-reflectance fit, refine in CIEDE2000 with a ridge towards its "
                         "spectra (de2000, the default; docs/mixing.md), or stop at the log-reflectance fit")
     p.add_argument("--pair-terms", choices=("on", "off"),
-                   help="spectral table: fit pair terms for the pairs it measured mixed (on, the default; "
-                        "docs/mixing.md), or Duncan's sums for every mixture")
+                   help="spectral table: fit pair terms for the pairs it measured mixed, and infer them for pairs "
+                        "of paints each measured mixed with others (on, the default; docs/mixing.md), or Duncan's "
+                        "sums for every mixture")
     p.add_argument("--surface", choices=("none", "saunderson"),
                    help="table: Saunderson's surface correction (default: none)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"),

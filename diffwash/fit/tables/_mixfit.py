@@ -94,8 +94,11 @@ class MixModel:
     - `refine_spacing`: the refinement moves the spectra only by sums of Gaussian bumps about this many nm apart
       (`diffwash.fit.tables._seen.smooth_basis`); 0: every band free (spiky spectra; docs/mixing.md).
     - `pairs`: spectral tables: after the pigments, fit `diffwash.mixing.PairTerms` for every pair the table
-      measured mixed (`diffwash.fit.tables._pairs`), used for those pairs only; other pairs keep Duncan's law.
+      measured mixed (`diffwash.fit.tables._pairs`).
     - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter).
+    - `infer_pairs`: with `pairs`, a pair never measured mixed whose pigments were each measured mixed with others
+      takes terms inferred from those pigments' effects in their measured pairs (`_pairs.infer_pair_terms`);
+      off: such pairs keep Duncan's law.
     - `scatter_spread`, `gamma_spread`: the table's population priors (`diffwash.fit.tables._priors`): how far a
       pigment's log S (per band) and log amount-law exponent may stray from the table's mean (0: no prior).
     - `one_amount`: hold what the rows leave free (`diffwash.fit.tables._priors.TablePriors`): the amount law of a
@@ -114,6 +117,7 @@ class MixModel:
     refine_spacing: float = 50.0
     pairs: bool = True
     pair_ridge: float = _pairs.PAIR_RIDGE
+    infer_pairs: bool = True
     scatter_spread: float = _priors.SCATTER_SPREAD
     gamma_spread: float = _priors.GAMMA_SPREAD
     one_amount: bool = True
@@ -121,8 +125,8 @@ class MixModel:
     def describe(self) -> dict[str, Any]:
         return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
                 "own": self.own, "loss": self.loss, "ridge": self.ridge, "refine_spacing": self.refine_spacing,
-                "pairs": self.pairs,
-                "pair_ridge": self.pair_ridge, "scatter_spread": self.scatter_spread,
+                "pairs": self.pairs, "pair_ridge": self.pair_ridge, "infer_pairs": self.infer_pairs,
+                "effect_ridge": _pairs.EFFECT_RIDGE, "scatter_spread": self.scatter_spread,
                 "gamma_spread": self.gamma_spread, "one_amount": self.one_amount}  # fmt: skip
 
 
@@ -584,6 +588,8 @@ def fit_mixtures(
         if posterior and terms is not None:  # how well the terms predict their pairs elsewhere (`_model_errors`)
             held_seen = np.full(len(m), np.nan)
             held_seen[one] = _pairs.held_out_de2000(palette, A1, G[one], lab1, obs.lab, k2, ridge=model.pair_ridge)
+        if model.infer_pairs and terms is not None:
+            palette = eqx.tree_at(lambda p: p.pairs, palette, _pairs.infer_pair_terms(terms, len(names)))
     ok = all(bool(c) for c in stages)
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2)
     de, de_ab = residuals(lib, m)
@@ -643,12 +649,37 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(measured_lab(m, obs), dtype), band, float(model.ridge),
                         _SharedPrior(P, model, priors), basis=_refine_basis(obs, model, dtype))  # fmt: skip
     start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
-    refit = lambda folds, what, **steps: _posterior.refit_held_out(spectral, start, pb, folds,  # noqa: E731
-                                                                   rtol=1e-7 if dtype == jnp.float64 else 1e-4,
-                                                                   progress=lambda i, n: say(f"{what} fold {i}/{n}"),
-                                                                   **steps)  # fmt: skip
+    with_pairs = model.pairs and model.infer_pairs and palette.pairs is not None
+
+    def refit(folds, what, pairs: bool = False, **steps):
+        """Each fold's held-out CIELAB; `pairs`: predicted as the fit predicts a pair it never measured
+        (`_fold_lab_with_pairs`)."""
+        predict = (lambda y, test: _fold_lab_with_pairs(m, names, model, obs, y, test)) if pairs and with_pairs else None
+        return _posterior.refit_held_out(spectral, start, pb, folds, rtol=1e-7 if dtype == jnp.float64 else 1e-4,
+                                         progress=lambda i, n: say(f"{what} fold {i}/{n}"), predict=predict, **steps)
+
     return _regions_of(m, names, (F, diag, sigma), from_prior, palette, k2, obs, lib, (np.asarray(A), np.asarray(G)),
                        refit, {"noise_log_reflectance": round(sigma, 6)}, held_seen)  # fmt: skip
+
+
+def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, y, test: np.ndarray) -> np.ndarray:
+    """A leave-pairs-out fold's held-out rows' CIELAB as the fit would predict them from the fold's rows alone: the
+    fold's pigments `y` = (band, shared), its measured pairs' terms fitted to its own rows (the whole table's
+    shapes: one compiled program for every fold), and the held-out pairs' terms inferred from those
+    (`_pairs.infer_pair_terms`)."""
+    band, shared = y
+    P = len(names)
+    gam, w, k2 = _shared(shared, P, model)
+    palette = mixing.Palette(K=jnp.exp(band[:, :P]).T, S=jnp.exp(band[:, P:]).T, law=mixing.AmountLaw(gamma=gam),
+                             weights=w, names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
+    A, G = _dense(m, list(names))
+    one, A1 = _one_layer(A)
+    terms, _ = _pairs.fit_pair_terms(palette, A1, G[one], measured_lab(m, obs)[one], obs.lab, k2,
+                                     ridge=model.pair_ridge, use=~np.asarray(test)[one])  # fmt: skip
+    palette = eqx.tree_at(lambda p: p.pairs, palette, _pairs.infer_pair_terms(terms, P), is_leaf=lambda x: x is None)
+    held = m.select(np.asarray(test))
+    lib = Library(palette=palette, grounds=dict(m.grounds), observation=obs, k2=float(k2))
+    return np.asarray(lib.predict(held.pigments, held.amounts, held.ground).lab, np.float64)
 
 
 def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: float, obs, lib: Library, rows,
@@ -701,7 +732,7 @@ def _rgb_posterior(m: Measurements, names, model: MixModel, palette, k2: float, 
     F, diag, sigma = _rgb_laplace(fit, len(m), P, model.gamma)
     from_prior = _from_priors(fit.fn.priors, F, diag, sigma, int(np.asarray(palette.K).shape[1]), P, model)
 
-    def refit(folds, what, **steps):
+    def refit(folds, what, pairs: bool = False, **steps):  # an RGB fit has no pair terms
         out = []
         for i, test in enumerate(folds):
             say(f"{what} fold {i + 1}/{len(folds)}")
@@ -781,7 +812,7 @@ def _model_errors(m: Measurements, kind, lab_m, lab_p, spread, refit, held_seen:
         rows[k] = len(test)
         if not len(test):
             continue
-        held = refit(folds, what, **steps)
+        held = refit(folds, what, pairs=k == "unseen", **steps)
         if k == "unseen":
             scale[k] = _posterior.calibrate_scale(lab_m[test], np.concatenate(held), spread[:, test],
                                                   share=_posterior.conformal_level(len(test)))  # fmt: skip

@@ -13,6 +13,12 @@ equations, Marquardt's scaling), all of them at once under `jax.vmap`.
 
 docs/mixing.md measures the terms on rows of measured pairs held out of the
 fit, and chose the ridge and the number of bumps on a different split.
+
+A pair never measured mixed, whose two pigments were each measured mixed with
+others, takes terms inferred from those pigments' effects in their measured
+pairs (`infer_pair_terms`): part of what a pair does beyond Duncan is its
+pigments' own (a paint that flocculates or dilutes another's scattering does
+so in most of its mixtures).
 """
 
 from __future__ import annotations
@@ -29,7 +35,8 @@ from ... import colorimetry, mixing
 from ..._schema import PAIR_AMOUNT_MAX, PAIR_BUMP_MAX
 from .._bandlsq import GN_TOL, Convergence, loss_floor, newton_decrement
 
-__all__ = ["fit_pair_terms", "held_out_de2000", "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
+__all__ = ["fit_pair_terms", "held_out_de2000", "infer_pair_terms", "EFFECT_RIDGE", "PAIR_BUMPS", "PAIR_RIDGE",
+           "PAIR_STEPS"]
 
 #: Gaussian bumps per spectral scale (over the palette's band grid).
 PAIR_BUMPS = 4
@@ -37,6 +44,9 @@ PAIR_BUMPS = 4
 PAIR_RIDGE = 1.0
 #: Levenberg-Marquardt steps per pair (a pair has 2 * PAIR_BUMPS + 2 parameters: it converges in far fewer).
 PAIR_STEPS = 40
+#: The ridge of the per-pigment effects that unmeasured pairs' terms are inferred from (`infer_pair_terms`), in
+#: measured pairs: a pigment measured in that many pairs has its effect shrunk by half towards 0 (Duncan).
+EFFECT_RIDGE = 10.0
 
 
 def measured_pairs(A: np.ndarray) -> list[tuple[int, int]]:
@@ -51,11 +61,12 @@ def _basis(wavelengths: tuple[float, ...], n: int) -> tuple[tuple[float, ...], f
     return tuple(float(x) for x in c), float((c[1] - c[0]) * 0.8 if n > 1 else wavelengths[-1] - wavelengths[0])
 
 
-def _terms(theta: Array, members, n: int, centres, width, wavelengths) -> mixing.PairTerms:
+def _terms(theta: Array, members, n: int, centres, width, wavelengths, inferred=()) -> mixing.PairTerms:
     """`PairTerms` of one pair (members `((0, 1),)`) or of `Q` pairs from parameters `(..., 2n + 2)`."""
     t = jnp.atleast_2d(theta)
     return mixing.PairTerms(members=members, k_bumps=t[:, :n], s_bumps=t[:, n : 2 * n], k_amount=t[:, 2 * n],
-                            s_amount=t[:, 2 * n + 1], centres=centres, width=width, wavelengths=wavelengths)
+                            s_amount=t[:, 2 * n + 1], centres=centres, width=width, wavelengths=wavelengths,
+                            inferred=inferred)  # fmt: skip
 
 
 def _rows(pairs, A):
@@ -66,12 +77,14 @@ def _rows(pairs, A):
     return idx, np.stack([np.arange(R) < len(r) for r in rows])
 
 
-def _pack(palette: mixing.Palette, pairs, A, G, lab, dtype):
+def _pack(palette: mixing.Palette, pairs, A, G, lab, dtype, use: np.ndarray | None = None):
     """Per pair, as arrays of `dtype`: its two pigments' K, S, amount-law exponents and weights, and its rows' two
-    amounts, grounds, target colours and which are real (padded to the largest pair's count): `_fit_pairs`'s
-    arguments after the static ones."""
+    amounts, grounds, target colours and which are real (padded to the largest pair's count), only rows where
+    `use` (N,) is true counted real: `_fit_pairs`'s arguments after the static ones."""
     A, G, lab = np.asarray(A), np.asarray(G), np.asarray(lab)
     idx, mask = _rows(pairs, A)
+    if use is not None:
+        mask = mask & np.asarray(use, bool)[idx]
     ij = np.asarray(pairs)
     A2 = np.stack([A[idx, ij[:, :1]], A[idx, ij[:, 1:]]], axis=-1)
     per_pigment = (palette.K, palette.S, palette.law.gamma, palette.weights)
@@ -163,6 +176,7 @@ def fit_pair_terms(
     ridge: float = PAIR_RIDGE,
     bumps: int = PAIR_BUMPS,
     steps: int = PAIR_STEPS,
+    use: np.ndarray | None = None,
 ) -> tuple[mixing.PairTerms | None, Convergence]:
     """Fit a spectral palette's `PairTerms` to the two-pigment rows among `A` (module docstring).
 
@@ -173,6 +187,9 @@ def fit_pair_terms(
     - `lab_of`: reflectance (..., B) to CIELAB (the library's observation).
     - `k2`: Saunderson's surface term of the palette's fit.
     - `ridge`, `bumps`, `steps`: the module's constants.
+    - `use`: the rows the fit may use (N,) (a cross-validation fold's training rows; default all). The fit has the
+      shapes of all rows' (its compiled program is the whole table's); a pair none of whose rows it may use has
+      no terms.
 
     **Returns:** `(terms, convergence)`: the `PairTerms` (None when no row mixes exactly two pigments) and a
     `Convergence`, true when every pair's fit converged (`_lm`), naming the pair farthest from its minimum.
@@ -180,12 +197,19 @@ def fit_pair_terms(
     if palette.wavelengths is None:
         raise ValueError("pair terms need a spectral palette (a band grid)")
     pairs = measured_pairs(np.asarray(A))
-    if not pairs:
+    if use is not None and pairs:  # the pairs with rows to fit; the others are padding of the same shapes
+        idx, mask = _rows(pairs, np.asarray(A))
+        keep = np.flatnonzero((mask & np.asarray(use, bool)[idx]).any(axis=1))
+    else:
+        keep = np.arange(len(pairs))
+    if not len(keep):
         return None, Convergence(converged=True, steps=0, stage="pair terms (none measured)")
     dtype = jnp.zeros(()).dtype
     centres, width = _basis(palette.wavelengths, bumps)
     theta, done, dec = _fit_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, bumps, ridge,
-                                  steps, *_pack(palette, pairs, A, G, lab_target, dtype))  # fmt: skip
+                                  steps, *_pack(palette, pairs, A, G, lab_target, dtype, use))  # fmt: skip
+    theta, done, dec = theta[keep], np.asarray(done)[keep], np.asarray(dec)[keep]
+    pairs = [pairs[q] for q in keep]
     ij = np.asarray(pairs)
     # A library file holds pair terms within their declared bounds (`_schema.PairTerm`): clipped there, a fit's
     # library always loads again (fitted terms lie far inside: below 1.5 and 0.3 on the NTU table).
@@ -231,3 +255,38 @@ def held_out_de2000(
     de = np.asarray(de, np.float64)
     out[idx[mask]] = de[mask]
     return out
+
+
+def infer_pair_terms(terms: mixing.PairTerms | None, P: int, ridge: float = EFFECT_RIDGE) -> mixing.PairTerms | None:
+    r"""`terms` (fitted to measured pairs of `P` pigments) and, for every pair never measured mixed whose two
+    pigments were each measured mixed with others, terms inferred from those pigments' effects (`inferred`).
+
+    A measured pair's $2n + 2$ numbers are read as one effect per pigment plus the pair's own part,
+    $\theta_{ij} = e_i + e_j + \epsilon_{ij}$. The effects are the ridge regression of the measured pairs' terms on
+    their pigments, $E = (X^\top X + \lambda I)^{-1} X^\top \Theta$ ($X$ the (Q, P) incidence of pairs and
+    pigments, $\lambda$ = `ridge`), shrunk towards 0: Duncan's law, where few measured pairs say little of a
+    pigment. A pair never measured takes $e_i + e_j$, within the terms' declared bounds. A pigment never measured
+    mixed has no effect to infer from, and its pairs no terms (their rows are `unmixed`, `diffwash._regions.kinds`).
+    docs/mixing.md measures the inferred terms on pairs held out of the fit.
+    """
+    if terms is None or not terms.members:
+        return terms
+    measured = [tuple(int(x) for x in p) for p in terms.members if tuple(p) not in set(terms.inferred)]
+    rows = [q for q, p in enumerate(terms.members) if tuple(int(x) for x in p) in set(measured)]
+    mixed = sorted({i for p in measured for i in p})
+    new = [(i, j) for a, i in enumerate(mixed) for j in mixed[a + 1 :] if (i, j) not in set(measured)]
+    if not new:
+        return terms
+    q = np.asarray(rows)
+    theta = np.concatenate([np.asarray(terms.k_bumps, np.float64)[q], np.asarray(terms.s_bumps, np.float64)[q],
+                            np.asarray(terms.k_amount, np.float64)[q, None],
+                            np.asarray(terms.s_amount, np.float64)[q, None]], axis=1)  # fmt: skip
+    X = np.zeros((len(measured), P))
+    X[np.arange(len(measured))[:, None], np.asarray(measured)] = 1.0
+    effects = np.linalg.solve(X.T @ X + ridge * np.eye(P), X.T @ theta)
+    n = theta.shape[1] // 2 - 1
+    bound = np.asarray([PAIR_BUMP_MAX] * (2 * n) + [PAIR_AMOUNT_MAX] * 2)
+    inferred = np.clip(effects[[i for i, _ in new]] + effects[[j for _, j in new]], -bound, bound)
+    full = np.concatenate([theta, inferred]).astype(np.asarray(terms.k_bumps).dtype)
+    return _terms(jnp.asarray(full), tuple(measured) + tuple(new), n, terms.centres, terms.width, terms.wavelengths,
+                  inferred=tuple(new))

@@ -36,6 +36,7 @@ prediction error via approximate leave-one-out cross-validation", JRSS B 82 (202
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -112,7 +113,8 @@ def factored(full: np.ndarray, rank: int = RANK) -> tuple[np.ndarray, np.ndarray
 
 def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray], *, rtol: float,
                    steps: int = FOLD_STEPS, refine_steps: int = FOLD_REFINE_STEPS,
-                   progress: Callable[[int, int], None] | None = None) -> list[np.ndarray]:  # fmt: skip
+                   progress: Callable[[int, int], None] | None = None,
+                   predict: Callable[[Any, np.ndarray], np.ndarray] | None = None) -> list[np.ndarray]:  # fmt: skip
     """Each fold's rows' CIELAB as predicted by the fit refitted without them, in fold order.
 
     Each fold is the fit's own two stages run again from the fit's own `start` (which a table's single paints
@@ -120,7 +122,9 @@ def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray],
     (`BandLevenbergMarquardt`, at most `steps` steps), then the CIEDE2000 refinement of `pb` (at most
     `refine_steps`) with its ridge towards that fold's own log-reflectance spectra. Nothing of the full fit,
     which saw the fold's rows, enters a fold; the folds and the fit share its compiled programs (the rows' weights
-    are their argument). `progress(i, n)` is called as fold i of n begins."""
+    are their argument). `progress(i, n)` is called as fold i of n begins. `predict(y, test)`: the held-out rows'
+    CIELAB from the fold's parameters `y` (default: the pigments' alone, `pb.reflect`), for a fit whose
+    predictions hold more than its pigments (pair terms, fitted to the fold's own rows)."""
     solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
 
     def one(test):
@@ -131,6 +135,8 @@ def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray],
         y, _, _ = _seen.refine_in_de2000(pb.reflect, pb.lab_of, pb.lab_target, sol.value, ridge=pb.ridge,
                                          shared_prior=pb.shared_prior, max_steps=refine_steps,
                                          rtol=max(rtol, 1e-5), weights=w, basis=pb.basis)  # fmt: skip
+        if predict is not None:
+            return np.asarray(predict(y, test), np.float64)
         return np.asarray(pb.lab_of(pb.reflect(*y)), np.float64)[test]
 
     out = []

@@ -1,0 +1,148 @@
+"""Pair terms inferred for pairs never measured mixed (diffwash.fit.tables._pairs.infer_pair_terms): the sum of
+per-pigment effects fitted to the measured pairs' terms, marked in the library file, used by the fit's
+leave-pairs-out folds that calibrate the unseen pairs' 90% regions."""
+
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import ROOT
+from test_mix_pairs import GRID, TRUE, _palette, _terms, eqx_replace
+
+from diffwash import _schema, library, measurements, spectral
+from diffwash.fit import MixModel, fit_mixtures
+from diffwash.fit.tables import _mixfit, _pairs
+
+NTU = ROOT / "data" / "ntu-wpsm" / "ntu-spectral-train.csv"
+MEASURED = ((0, 1), (0, 2), (1, 2), (1, 3), (2, 3))  # of 5 pigments: (0, 3) never measured; 4 never mixed
+
+
+def _additive(effects):
+    """Terms of MEASURED that are exactly the sum of their pigments' effects (P, 10)."""
+    theta = np.stack([effects[i] + effects[j] for i, j in MEASURED])
+    return _terms(theta, MEASURED)
+
+
+def test_terms_that_are_sums_of_pigment_effects_are_inferred_exactly_without_the_ridge():
+    effects = np.random.default_rng(3).normal(0, 0.2, (5, 10))
+    out = _pairs.infer_pair_terms(_additive(effects), 5, ridge=1e-9)
+    assert out.inferred == ((0, 3),)  # pigment 4 was never mixed: no pair of it is inferred
+    assert out.members == MEASURED + ((0, 3),)
+    theta = np.concatenate([out.k_bumps, out.s_bumps, np.asarray(out.k_amount)[:, None],
+                            np.asarray(out.s_amount)[:, None]], axis=1)  # fmt: skip
+    np.testing.assert_allclose(theta[-1], effects[0] + effects[3], atol=1e-6)
+    np.testing.assert_allclose(theta[:-1], np.stack([effects[i] + effects[j] for i, j in MEASURED]), atol=1e-12)
+
+
+def test_the_default_ridge_shrinks_inferred_terms_towards_duncan():
+    effects = np.random.default_rng(4).normal(0, 0.2, (5, 10))
+    exact = effects[0] + effects[3]
+    got = _pairs.infer_pair_terms(_additive(effects), 5)
+    theta = np.concatenate([got.k_bumps[-1], got.s_bumps[-1], [got.k_amount[-1], got.s_amount[-1]]])
+    # With 2-3 measured pairs per pigment and a ridge of 10, each effect keeps about a fifth of itself.
+    assert 0.05 < np.linalg.norm(theta) / np.linalg.norm(exact) < 0.5
+    assert float(theta @ exact) > 0
+
+
+def test_inferring_again_changes_nothing_and_nothing_to_infer_is_the_same_terms():
+    terms = _additive(np.random.default_rng(5).normal(0, 0.2, (5, 10)))
+    once = _pairs.infer_pair_terms(terms, 5)
+    twice = _pairs.infer_pair_terms(once, 5)
+    assert twice.members == once.members and twice.inferred == once.inferred
+    np.testing.assert_allclose(twice.k_bumps, once.k_bumps)
+    every = _terms(np.zeros((3, 10)), ((0, 1), (0, 2), (1, 2)))
+    assert _pairs.infer_pair_terms(every, 3) is every
+    assert _pairs.infer_pair_terms(None, 3) is None
+
+
+def test_inferred_terms_stay_within_what_a_library_file_may_hold():
+    # Measured terms within the bounds (pigments 0 and 3 each at 0.8 of it, 1 and 2 at 0.1), whose effects add past it.
+    bound = np.asarray([_schema.PAIR_BUMP_MAX] * 8 + [_schema.PAIR_AMOUNT_MAX] * 2)
+    effects = np.asarray([0.8, 0.1, 0.1, 0.8, 0.0])[:, None] * bound
+    out = _pairs.infer_pair_terms(_additive(effects), 5, ridge=1e-9)
+    assert float(jnp.max(out.k_bumps[-1])) == _schema.PAIR_BUMP_MAX
+    assert float(jnp.max(out.s_amount[-1])) == _schema.PAIR_AMOUNT_MAX
+
+
+def test_a_library_file_marks_inferred_pairs_and_reads_them_back(tmp_path):
+    pal = _palette()
+    terms = _pairs.infer_pair_terms(_terms(np.stack([TRUE, TRUE]), ((0, 1), (1, 2))), 3)
+    assert terms.inferred == ((0, 2),)
+    lib = library.Library(eqx_replace(pal, terms), {"paper": np.full(len(GRID), 0.85)}, spectral.observation(GRID))
+    lib.save(tmp_path / "lib.json")
+    d = json.loads((tmp_path / "lib.json").read_text())
+    flags = {tuple(e["pigments"]): e.get("inferred", False) for e in d["pair_terms"]["pairs"]}
+    assert flags == {("A", "B"): False, ("B", "C"): False, ("A", "C"): True}
+    again = library.load_library(tmp_path / "lib.json")
+    assert again.palette.pairs.inferred == ((0, 2),)
+    q = (["A+C", "A+B"], ["0.02+0.03", "0.02+0.03"])
+    np.testing.assert_allclose(again.predict(*q).lab, lib.predict(*q).lab, atol=1e-9)
+    # A palette of some of the pigments keeps the mark on the pairs it keeps, renumbered.
+    sub = terms.subset([2, 0])
+    assert sub.members == ((0, 1),) and sub.inferred == ((0, 1),)
+    assert terms.subset([1, 2]).inferred == ()
+
+
+def test_a_pair_terms_fit_on_some_rows_is_the_fit_of_those_rows_alone():
+    """`use` (a fold's training rows): the whole table's shapes, the terms of a table holding only those rows."""
+    pal = _palette()
+    truth = eqx_replace(pal, _terms(np.stack([TRUE, TRUE]), ((0, 1), (1, 2))))
+    obs = spectral.observation(GRID)
+    A = np.array([[a, b, 0.0] for a in (0.01, 0.04) for b in (0.02, 0.06)] + [[0.0, 0.02, 0.03], [0.0, 0.05, 0.01]])
+    paper = np.full((len(A), len(GRID)), 0.85)
+    lab = np.asarray(obs.lab(truth.reflectance(jnp.asarray(A), jnp.asarray(paper))))
+    use = np.array([True, False, True, True, False, False])
+    some, _ = _pairs.fit_pair_terms(pal, A, paper, lab, obs.lab, use=use)
+    alone, _ = _pairs.fit_pair_terms(pal, A[use], paper[use], lab[use], obs.lab)
+    assert some.members == alone.members == ((0, 1),)  # B+C has no row to fit: no terms
+    np.testing.assert_allclose(some.k_bumps, alone.k_bumps, atol=1e-6)
+    assert _pairs.fit_pair_terms(pal, A, paper, lab, obs.lab, use=np.zeros(len(A), bool))[0] is None
+
+
+@pytest.fixture(scope="module")
+def four_paints():
+    """Four real paints, five of their six pairs measured mixed: P5+P9 never."""
+    m = measurements.read_measurements(NTU)
+    keep = [set(p) <= {"P1", "P5", "P7", "P9"} and set(p) != {"P5", "P9"} for p in m.pigments]
+    return m.select(keep)
+
+
+def test_a_fit_infers_the_pair_it_never_measured_and_its_folds_predict_as_it_does(four_paints, monkeypatch):
+    calls = []
+    real = _mixfit._fold_lab_with_pairs
+
+    def spy(m, names, model, obs, y, test):
+        out = real(m, names, model, obs, y, test)
+        calls.append((int(np.sum(test)), out))
+        return out
+
+    monkeypatch.setattr(_mixfit, "_fold_lab_with_pairs", spy)
+    lib = fit_mixtures(four_paints, max_steps=60).library
+    names = lib.palette.names
+    pair = tuple(sorted((names.index("P5"), names.index("P9"))))
+    assert lib.palette.pairs.inferred == (pair,)
+    assert lib.fit["model"]["infer_pairs"] is True
+    # The unseen pairs' model error comes from leave-pairs-out folds predicted the same way: each fold infers
+    # its held-out pairs' terms from its own measured pairs (one call per fold, every held-out row).
+    assert len(calls) == 4 and all(np.isfinite(lab).all() and len(lab) == n for n, lab in calls)
+    assert lib.fit["uncertainty"]["model_error"]["unseen"] > 0
+    q = (["P5+P9"] * 3, ["0.02+0.02", "0.05+0.01", "0.01+0.05"])
+    duncan = library.Library(eqx_replace(lib.palette, _drop_inferred(lib.palette.pairs)), lib.grounds, lib.observation)
+    got = lib.predict(*q)
+    assert np.isfinite(got.lab).all() and np.isfinite(got.de2000_90).all()
+    assert np.abs(got.lab - duncan.predict(*q).lab).max() > 1e-3  # the inferred terms act on the pair
+
+
+def test_inference_can_be_turned_off(four_paints):
+    lib = fit_mixtures(four_paints, max_steps=20, posterior=False, model=MixModel(infer_pairs=False)).library
+    assert lib.palette.pairs.inferred == () and len(lib.palette.pairs.members) == 5
+
+
+def _drop_inferred(terms):
+    keep = [q for q, p in enumerate(terms.members) if tuple(p) not in set(terms.inferred)]
+    k = np.asarray(keep)
+    return _pairs._terms(jnp.concatenate([terms.k_bumps[k], terms.s_bumps[k], terms.k_amount[k, None],
+                                          terms.s_amount[k, None]], axis=1),
+                         tuple(terms.members[q] for q in keep), terms.k_bumps.shape[1], terms.centres, terms.width,
+                         terms.wavelengths)  # fmt: skip

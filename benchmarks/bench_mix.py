@@ -12,7 +12,8 @@ Prints Markdown tables, on the NTU WPSM measurements in data/ntu-wpsm/:
    quarter of the 62 pairs; single paints always train): share of held-out rows within CIE dE*ab 5 and mean
    CIEDE2000, the share held by the predictions' 90% regions (`de2000_90`), for each model term (spectral Duncan
    with the held-out pairs' terms inferred from the measured pairs', the default; `noinfer`: those pairs at
-   Duncan's law; + a mixing weight per pigment; the RGB table fitted as smooth spectra), on the fold draws of
+   Duncan's law; + a mixing weight per pigment; the RGB table fitted as smooth spectra, with its pair terms
+   and inferred ones, and, `rgbduncan`, without), on the fold draws of
    `--seeds` (default 0), and for Mixbox (pymixbox, CC BY-NC: a benchmark peer only, never a dependency) mixing the
    measured colours of the two paints, each at the mixture's total amount, at the ratio of their amounts.
 3. Rows of measured pairs held out at random (a fifth of the mixture rows, seeds 0 and 1; every pair is still
@@ -322,7 +323,9 @@ MODELS = {
     "surface": ("spectral + Saunderson k2", SPECTRAL, MixModel(surface=True)),
     "linearlaw": ("spectral Duncan, thickness proportional to amount (no fitted amount law)", SPECTRAL,
                   MixModel(gamma=False)),
-    "rgb": ("RGB table as smooth spectra, Duncan", RGB, MixModel()),
+    "rgb": ("RGB table as smooth spectra, pair terms, unseen pairs' terms inferred", RGB, MixModel()),
+    "rgbduncan": ("RGB table as smooth spectra, Duncan for every mixture (the default before 2026-11-27)", RGB,
+                  MixModel(pairs=False)),
     "mixbox": ("Mixbox on measured single colours", RGB, None),
 }
 

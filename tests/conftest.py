@@ -56,9 +56,9 @@ DATA = ROOT / "data"
 def write_spectral_table(path: Path, m) -> Path:
     """Write `diffwash.measurements.Measurements` on paper as a spectral table CSV (the shared tables' format)."""
     rows = ["pigment,amount,ground," + ",".join(f"{w:g}" for w in m.wavelengths)]
-    rows.append("paper,0,paper," + ",".join(f"{v!r}" for v in m.grounds["paper"]))
+    rows.append("paper,0,paper," + ",".join(f"{float(v)!r}" for v in m.grounds["paper"]))
     for p, a, v in zip(m.pigments, m.amounts, m.values):
-        rows.append(f"{'+'.join(p)},{'+'.join(f'{x:g}' for x in a)},paper," + ",".join(f"{x!r}" for x in v))
+        rows.append(f"{'+'.join(p)},{'+'.join(f'{x:g}' for x in a)},paper," + ",".join(f"{float(x)!r}" for x in v))
     path.write_text("\n".join(rows) + "\n")
     return path
 

@@ -134,6 +134,28 @@ def test_a_fit_infers_the_pair_it_never_measured_and_its_folds_predict_as_it_doe
     assert np.abs(got.lab - duncan.predict(*q).lab).max() > 1e-3  # the inferred terms act on the pair
 
 
+def test_an_rgb_table_gets_pair_terms_and_infers_the_pair_it_never_measured(tmp_path, monkeypatch):
+    """The RGB route fits its paints as smooth spectra: its measured pairs get terms, and P5+P9 inferred ones, its
+    folds predicting their held-out pairs the same way."""
+    lines = (ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv").read_text().splitlines()
+    keep = {"P1", "P5", "P7", "P9", "paper"}
+    paints = [set(r.split(",")[0].split("+")) for r in lines[1:]]
+    rows = [r for r, p in zip(lines[1:], paints) if p <= keep and p != {"P5", "P9"}]
+    (tmp_path / "rgb.csv").write_text("\n".join([lines[0], *rows]) + "\n")
+    m = measurements.read_measurements(tmp_path / "rgb.csv")
+    assert not m.spectral
+    calls = []
+    real = _mixfit._fold_lab_with_pairs
+    monkeypatch.setattr(_mixfit, "_fold_lab_with_pairs", lambda *a: calls.append(a[-1]) or real(*a))
+    lib = fit_mixtures(m, max_steps=80).library
+    names = lib.palette.names
+    assert len(lib.palette.pairs.members) == 6
+    assert lib.palette.pairs.inferred == (tuple(sorted((names.index("P5"), names.index("P9")))),)
+    assert len(calls) == 4
+    pred = lib.predict(["P5+P9", "P1+P7"], ["0.02+0.02", "0.02+0.02"])
+    assert np.isfinite(pred.lab).all() and np.isfinite(pred.de2000_90).all()
+
+
 def test_inference_can_be_turned_off(four_paints):
     lib = fit_mixtures(four_paints, max_steps=20, posterior=False, model=MixModel(infer_pairs=False)).library
     assert lib.palette.pairs.inferred == () and len(lib.palette.pairs.members) == 5

@@ -54,9 +54,6 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
                             field="--linear")  # fmt: skip
     if args.refine and not m.spectral:
         raise DiffwashError("applies to spectral tables (an RGB table is fitted in CIEDE2000 already)", field="--refine")
-    if args.pair_terms and not m.spectral:
-        raise DiffwashError("applies to spectral tables (an RGB table is fitted without pair terms)",
-                            field="--pair-terms")  # fmt: skip
     model = diffwash.fit.MixModel(weights=args.mixing == "weights", surface=args.surface == "saunderson",
                      loss="spectral" if args.refine == "none" else "de2000", pairs=args.pair_terms != "off")
     fit = diffwash.fit.fit_mixtures(m, model=model, max_steps=args.max_steps, progress=_stage_printer(t0))

@@ -56,7 +56,7 @@ def add_arguments(p) -> None:
                    help="spectral table: after the log-reflectance fit, refine in CIEDE2000 with a ridge towards its "
                         "spectra (de2000, the default; docs/mixing.md), or stop at the log-reflectance fit")
     p.add_argument("--pair-terms", choices=("on", "off"),
-                   help="spectral table: fit pair terms for the pairs it measured mixed, and infer them for pairs "
+                   help="table: fit pair terms for the pairs it measured mixed, and infer them for pairs "
                         "of paints each measured mixed with others (on, the default; docs/mixing.md), or Duncan's "
                         "sums for every mixture")
     p.add_argument("--surface", choices=("none", "saunderson"),
@@ -170,7 +170,8 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
     if args.loss is not None:
         raise DiffwashError("does not apply to cards of several pigments (fitted jointly in CIEDE2000: "
                             "docs/fitting.md)", field="--loss")  # fmt: skip
-    model = diffwash.fit.MixModel(weights=args.mixing == "weights", prior=diffwash.fit.CARD_PRIOR)
+    model = diffwash.fit.MixModel(weights=args.mixing == "weights", prior=diffwash.fit.CARD_PRIOR,
+                                  pairs=False)  # as `fit_swatch_mixtures`'s default (`CARD_MODEL`)  # fmt: skip
     fit = diffwash.fit.fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model,
                                            max_steps=args.max_steps, checker=args.checker,
                                            tone_curve=args.tone_curve)  # fmt: skip

@@ -124,6 +124,9 @@ def _per_coat(fit: MixtureFit, scale: float) -> MixtureFit:
 #: tests/test_swatch_mixtures.py's card (float64): mean CIEDE2000 to the card 0.54 (max 2.3) with this factor,
 #: 1.71 (max 6.2) with 1; the mixture held out of the card 0.9 and 1.8 (over paper, over black) against 3.5.
 CARD_PRIOR = 0.1
+#: A card's fit keeps Duncan's law for its mixtures (`MixModel.pairs` off): a card holds a patch or two per pair, and
+#: pair terms (fitted and measured on tables of 12-20 rows per pair) have not been measured on cards.
+CARD_MODEL = MixModel(prior=CARD_PRIOR, pairs=False)
 
 
 def measurement_error(measured: list[_Photo]) -> float:
@@ -154,7 +157,7 @@ def fit_swatch_mixtures(
     layout: Any,
     *,
     name: str | None = None,
-    model: MixModel = MixModel(prior=CARD_PRIOR),
+    model: MixModel = CARD_MODEL,
     max_steps: int = 400,
     rtol: float | None = None,
     checker: bool = False,
@@ -171,8 +174,8 @@ def fit_swatch_mixtures(
       their paint (`"pigment": "P1+P4", "coats": "1+2"`); a patch that names none is of the card's pigment
       (`name`, else the layout's `name`, else the photo's file name).
     - `name`: the pigment of patches that name none.
-    - `model`: the `MixModel` (default: Duncan's law with a fitted amount law per pigment, priors
-      `CARD_PRIOR` times the RGB tables').
+    - `model`: the `MixModel` (default `CARD_MODEL`: Duncan's law with a fitted amount law per pigment, priors
+      `CARD_PRIOR` times the RGB tables', no pair terms).
     - `max_steps`: Levenberg-Marquardt steps at most.
     - `rtol`: the solver's tolerance (default: `fit_mixtures`'s for an RGB table).
     - `checker`: calibrate each photo from an X-Rite ColorChecker Classic found in it (as `fit_swatches`).

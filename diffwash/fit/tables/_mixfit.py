@@ -93,8 +93,8 @@ class MixModel:
     - `ridge`: the refinement's pull towards the spectral fit (CIEDE2000 units per unit log K or log S).
     - `refine_spacing`: the refinement moves the spectra only by sums of Gaussian bumps about this many nm apart
       (`diffwash.fit.tables._seen.smooth_basis`); 0: every band free (spiky spectra; docs/mixing.md).
-    - `pairs`: spectral tables: after the pigments, fit `diffwash.mixing.PairTerms` for every pair the table
-      measured mixed (`diffwash.fit.tables._pairs`).
+    - `pairs`: after the pigments, fit `diffwash.mixing.PairTerms` for every pair the table measured mixed
+      (`diffwash.fit.tables._pairs`; an RGB table's: on its pigments' smooth spectra, in CIEDE2000 of its sRGB).
     - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter).
     - `infer_pairs`: with `pairs`, a pair never measured mixed whose pigments were each measured mixed with others
       takes terms inferred from those pigments' effects in their measured pairs (`_pairs.infer_pair_terms`);
@@ -576,8 +576,9 @@ def fit_mixtures(
     w = w / np.exp(np.mean(np.log(w)))  # the weights' common scale is free: geometric mean 1
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
-    if m.spectral and model.pairs:  # from the rows of one layer (a stack's layers are not fitted pair terms)
-        A, G = _dense(m, list(names))
+    if model.pairs:  # from the rows of one layer (a stack's layers are not fitted pair terms)
+        A, _ = _dense(m, list(names))
+        G = np.stack([np.asarray(grounds[g], np.float64) for g in m.ground])  # on the palette's bands
         one, A1 = _one_layer(A)
         if n_pairs := len(pairs(m)):
             say(f"pair terms ({n_pairs} pairs)")
@@ -608,7 +609,7 @@ def fit_mixtures(
         record["uncertainty"] = post.record
     elif posterior and not m.spectral:
         say("posterior")
-        post = _rgb_posterior(m, list(names), model, palette, k2, obs, lib, rgb_fit, say)
+        post = _rgb_posterior(m, list(names), model, palette, k2, obs, lib, rgb_fit, say, held_seen)
         record["uncertainty"] = post.record
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=record, posterior=post)
     return MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model, tuple(stages))
@@ -654,7 +655,12 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     def refit(folds, what, pairs: bool = False, **steps):
         """Each fold's held-out CIELAB; `pairs`: predicted as the fit predicts a pair it never measured
         (`_fold_lab_with_pairs`)."""
-        predict = (lambda y, test: _fold_lab_with_pairs(m, names, model, obs, y, test)) if pairs and with_pairs else None
+        def predict(y, test):
+            band, shared = y
+            K, S = jnp.exp(band[:, :P]).T, jnp.exp(band[:, P:]).T
+            return _fold_lab_with_pairs(m, names, model, obs, lib.grounds, (K, S, *_shared(shared, P, model)), test)
+
+        predict = predict if pairs and with_pairs else None
         return _posterior.refit_held_out(spectral, start, pb, folds, rtol=1e-7 if dtype == jnp.float64 else 1e-4,
                                          progress=lambda i, n: say(f"{what} fold {i}/{n}"), predict=predict, **steps)
 
@@ -662,23 +668,24 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
                        refit, {"noise_log_reflectance": round(sigma, 6)}, held_seen)  # fmt: skip
 
 
-def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, y, test: np.ndarray) -> np.ndarray:
+def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, grounds: dict, params,
+                         test: np.ndarray) -> np.ndarray:  # fmt: skip
     """A leave-pairs-out fold's held-out rows' CIELAB as the fit would predict them from the fold's rows alone: the
-    fold's pigments `y` = (band, shared), its measured pairs' terms fitted to its own rows (the whole table's
-    shapes: one compiled program for every fold), and the held-out pairs' terms inferred from those
-    (`_pairs.infer_pair_terms`)."""
-    band, shared = y
+    fold's pigments `params` = (K, S, gamma, weights, k2) on the palette's bands (`grounds`: each ground's
+    reflectance there), its measured pairs' terms fitted to its own rows (the whole table's shapes: one compiled
+    program for every fold), and the held-out pairs' terms inferred from those (`_pairs.infer_pair_terms`)."""
+    K, S, gam, w, k2 = params
     P = len(names)
-    gam, w, k2 = _shared(shared, P, model)
-    palette = mixing.Palette(K=jnp.exp(band[:, :P]).T, S=jnp.exp(band[:, P:]).T, law=mixing.AmountLaw(gamma=gam),
-                             weights=w, names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
-    A, G = _dense(m, list(names))
+    palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
+                             weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
+    A, _ = _dense(m, list(names))
+    G = np.stack([np.asarray(grounds[g], np.float64) for g in m.ground])
     one, A1 = _one_layer(A)
     terms, _ = _pairs.fit_pair_terms(palette, A1, G[one], measured_lab(m, obs)[one], obs.lab, k2,
                                      ridge=model.pair_ridge, use=~np.asarray(test)[one])  # fmt: skip
     palette = eqx.tree_at(lambda p: p.pairs, palette, _pairs.infer_pair_terms(terms, P), is_leaf=lambda x: x is None)
     held = m.select(np.asarray(test))
-    lib = Library(palette=palette, grounds=dict(m.grounds), observation=obs, k2=float(k2))
+    lib = Library(palette=palette, grounds=dict(grounds), observation=obs, k2=float(k2))
     return np.asarray(lib.predict(held.pigments, held.amounts, held.ground).lab, np.float64)
 
 
@@ -724,26 +731,37 @@ def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: 
 
 
 def _rgb_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library, fit: "_RGBFit",
-                   say: Callable[[str], None] = lambda msg: None) -> _regions.Posterior:  # fmt: skip
+                   say: Callable[[str], None] = lambda msg: None,
+                   held_seen: np.ndarray | None = None) -> _regions.Posterior:  # fmt: skip
     """An RGB fit's `_regions.Posterior`, as a spectral fit's (`_regions_of`): the Laplace covariance of its basis
     coefficients and amount laws (`_rgb_laplace`) carried onto the bands, and its folds refitted from the fit's own
-    start to the fit's own test (an RGB fit is quick)."""
+    start to the fit's own test (an RGB fit is quick); a leave-pairs-out fold's held-out pairs predicted with the
+    terms it infers for them, where the fit infers terms (`_fold_lab_with_pairs`)."""
     P = len(names)
     F, diag, sigma = _rgb_laplace(fit, len(m), P, model.gamma)
     from_prior = _from_priors(fit.fn.priors, F, diag, sigma, int(np.asarray(palette.K).shape[1]), P, model)
 
-    def refit(folds, what, pairs: bool = False, **steps):  # an RGB fit has no pair terms
+    with_pairs = model.pairs and model.infer_pairs and palette.pairs is not None
+    phi = np.asarray(fit.fn.phi, np.float64)
+
+    def refit(folds, what, pairs: bool = False, **steps):
         out = []
         for i, test in enumerate(folds):
             say(f"{what} fold {i + 1}/{len(folds)}")
             w = jnp.asarray(~np.asarray(test), fit.fn.Y.dtype)
             fold = eqx.tree_at(lambda f: f.w, fit.fn, w)
-            y, _, _ = _solve_in_chunks(fold, fit.start, fit.args, fit.max_steps, fit.rtol, judge=False)
-            out.append(np.asarray(_rgb_lab(fit.fn, y, fit.args), np.float64)[np.asarray(test)])
+            (flat, shared), _, _ = _solve_in_chunks(fold, fit.start, fit.args, fit.max_steps, fit.rtol, judge=False)
+            if pairs and with_pairs:
+                logks = np.asarray(flat, np.float64).reshape(fit.fn.coef0.shape) @ phi.T
+                params = (np.exp(logks[:P]), np.exp(logks[P:]), *_shared(shared, P, model))
+                out.append(_fold_lab_with_pairs(m, names, model, obs, lib.grounds, params, test))
+            else:
+                out.append(np.asarray(_rgb_lab(fit.fn, (flat, shared), fit.args), np.float64)[np.asarray(test)])
         return out
 
     return _regions_of(m, names, (F, diag, sigma), from_prior, palette, k2, obs, lib,
-                       (np.asarray(fit.fn.A), np.asarray(fit.fn.G)), refit, {"noise_de2000": round(sigma, 6)})  # fmt: skip
+                       (np.asarray(fit.fn.A), np.asarray(fit.fn.G)), refit, {"noise_de2000": round(sigma, 6)},
+                       held_seen)  # fmt: skip
 
 
 @eqx.filter_jit

@@ -1,4 +1,5 @@
-r"""Fit `diffwash.mixing.PairTerms` to the mixtures of the pairs a table measured, pair by pair, in CIEDE2000.
+r"""Fit `diffwash.mixing.PairTerms` to the mixtures of the pairs a table measured, pair by pair, in CIEDE2000
+(a spectral table's, or an RGB table's, whose pigments are smooth spectra over `RGB_GRID`).
 
 With the pigments fitted (their K, S and amount laws serve every pair, measured
 mixed or not), what a measured pair does beyond Duncan's sums is fitted from

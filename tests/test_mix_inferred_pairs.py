@@ -11,6 +11,7 @@ from conftest import ROOT
 from test_mix_pairs import GRID, TRUE, _palette, _terms, eqx_replace
 
 from diffwash import _schema, library, measurements, spectral
+from diffwash.cli import main
 from diffwash.fit import MixModel, fit_mixtures
 from diffwash.fit.tables import _mixfit, _pairs
 
@@ -100,32 +101,46 @@ def test_a_pair_terms_fit_on_some_rows_is_the_fit_of_those_rows_alone():
     assert _pairs.fit_pair_terms(pal, A, paper, lab, obs.lab, use=np.zeros(len(A), bool))[0] is None
 
 
+KEEP = {"P1", "P5", "P9"}  # of the NTU paints: P1+P5 and P1+P9 measured mixed, P5+P9 left out (to be inferred)
+
+
+def _three_paints_lines(path):
+    lines = path.read_text().splitlines()
+    paints = [set(r.split(",")[0].split("+")) for r in lines[1:]]
+    return [lines[0], *(r for r, p in zip(lines[1:], paints) if p <= KEEP | {"paper"} and p != {"P5", "P9"})]
+
+
 @pytest.fixture(scope="module")
-def four_paints():
-    """Four real paints, five of their six pairs measured mixed: P5+P9 never."""
+def three_paints():
+    """Three real paints, two of their three pairs measured mixed: P5+P9 never."""
     m = measurements.read_measurements(NTU)
-    keep = [set(p) <= {"P1", "P5", "P7", "P9"} and set(p) != {"P5", "P9"} for p in m.pigments]
-    return m.select(keep)
+    return m.select([set(p) <= KEEP and set(p) != {"P5", "P9"} for p in m.pigments])
 
 
-def test_a_fit_infers_the_pair_it_never_measured_and_its_folds_predict_as_it_does(four_paints, monkeypatch):
+def _spy(monkeypatch):
+    """Record each call of `_mixfit._fold_lab_with_pairs` (its held-out rows and what it returned)."""
     calls = []
     real = _mixfit._fold_lab_with_pairs
 
-    def spy(m, names, model, obs, y, test):
-        out = real(m, names, model, obs, y, test)
-        calls.append((int(np.sum(test)), out))
+    def spy(*args):
+        out = real(*args)
+        calls.append((int(np.sum(args[-1])), out))
         return out
 
     monkeypatch.setattr(_mixfit, "_fold_lab_with_pairs", spy)
-    lib = fit_mixtures(four_paints, max_steps=60).library
+    return calls
+
+
+def test_a_fit_infers_the_pair_it_never_measured_and_its_folds_predict_as_it_does(three_paints, monkeypatch):
+    calls = _spy(monkeypatch)
+    lib = fit_mixtures(three_paints, max_steps=60).library
     names = lib.palette.names
     pair = tuple(sorted((names.index("P5"), names.index("P9"))))
-    assert lib.palette.pairs.inferred == (pair,)
+    assert lib.palette.pairs.inferred == (pair,) and len(lib.palette.pairs.members) == 3
     assert lib.fit["model"]["infer_pairs"] is True
     # The unseen pairs' model error comes from leave-pairs-out folds predicted the same way: each fold infers
-    # its held-out pairs' terms from its own measured pairs (one call per fold, every held-out row).
-    assert len(calls) == 4 and all(np.isfinite(lab).all() and len(lab) == n for n, lab in calls)
+    # its held-out pairs' terms from its own measured pairs (one call per fold that holds rows out, all its rows).
+    assert len(calls) == 2 and all(np.isfinite(lab).all() and len(lab) == n for n, lab in calls)
     assert lib.fit["uncertainty"]["model_error"]["unseen"] > 0
     q = (["P5+P9"] * 3, ["0.02+0.02", "0.05+0.01", "0.01+0.05"])
     duncan = library.Library(eqx_replace(lib.palette, _drop_inferred(lib.palette.pairs)), lib.grounds, lib.observation)
@@ -134,31 +149,28 @@ def test_a_fit_infers_the_pair_it_never_measured_and_its_folds_predict_as_it_doe
     assert np.abs(got.lab - duncan.predict(*q).lab).max() > 1e-3  # the inferred terms act on the pair
 
 
-def test_an_rgb_table_gets_pair_terms_and_infers_the_pair_it_never_measured(tmp_path, monkeypatch):
-    """The RGB route fits its paints as smooth spectra: its measured pairs get terms, and P5+P9 inferred ones, its
-    folds predicting their held-out pairs the same way."""
-    lines = (ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv").read_text().splitlines()
-    keep = {"P1", "P5", "P7", "P9", "paper"}
-    paints = [set(r.split(",")[0].split("+")) for r in lines[1:]]
-    rows = [r for r, p in zip(lines[1:], paints) if p <= keep and p != {"P5", "P9"}]
-    (tmp_path / "rgb.csv").write_text("\n".join([lines[0], *rows]) + "\n")
-    m = measurements.read_measurements(tmp_path / "rgb.csv")
-    assert not m.spectral
-    calls = []
-    real = _mixfit._fold_lab_with_pairs
-    monkeypatch.setattr(_mixfit, "_fold_lab_with_pairs", lambda *a: calls.append(a[-1]) or real(*a))
-    lib = fit_mixtures(m, max_steps=80).library
-    names = lib.palette.names
-    assert len(lib.palette.pairs.members) == 6
-    assert lib.palette.pairs.inferred == (tuple(sorted((names.index("P5"), names.index("P9")))),)
-    assert len(calls) == 4
-    pred = lib.predict(["P5+P9", "P1+P7"], ["0.02+0.02", "0.02+0.02"])
+def test_an_rgb_table_gets_pair_terms_and_infers_the_pair_it_never_measured(tmp_path, monkeypatch, capsys):
+    """The RGB route fits its paints as smooth spectra: through `fit-swatch --table`, its measured pairs get terms,
+    P5+P9 inferred ones (said, and marked in the library), and its folds predict their held-out pairs the same
+    way."""
+    table = tmp_path / "rgb.csv"
+    table.write_text("\n".join(_three_paints_lines(ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv")) + "\n")
+    assert not measurements.read_measurements(table).spectral
+    calls = _spy(monkeypatch)
+    assert main(["fit-swatch", "--table", str(table), "-o", str(tmp_path / "lib.json"), "--max-steps", "80",
+                 "--allow-unconverged"]) == 0  # fmt: skip
+    assert "pair terms inferred for 1 pair never measured mixed" in capsys.readouterr().out
+    got = {tuple(e["pigments"]): e.get("inferred", False)
+           for e in json.loads((tmp_path / "lib.json").read_text())["pair_terms"]["pairs"]}  # fmt: skip
+    assert got == {("P1", "P5"): False, ("P1", "P9"): False, ("P5", "P9"): True}
+    assert len(calls) == 2
+    pred = library.load_library(tmp_path / "lib.json").predict(["P5+P9", "P1+P5"], ["0.02+0.02", "0.02+0.02"])
     assert np.isfinite(pred.lab).all() and np.isfinite(pred.de2000_90).all()
 
 
-def test_inference_can_be_turned_off(four_paints):
-    lib = fit_mixtures(four_paints, max_steps=20, posterior=False, model=MixModel(infer_pairs=False)).library
-    assert lib.palette.pairs.inferred == () and len(lib.palette.pairs.members) == 5
+def test_inference_can_be_turned_off(three_paints):
+    lib = fit_mixtures(three_paints, max_steps=20, posterior=False, model=MixModel(infer_pairs=False)).library
+    assert lib.palette.pairs.inferred == () and len(lib.palette.pairs.members) == 2
 
 
 def _drop_inferred(terms):

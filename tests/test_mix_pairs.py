@@ -203,7 +203,7 @@ def test_bad_pair_terms_are_refused_naming_file_and_field(three_paints, tmp_path
     assert not (tmp_path / "p.csv").exists()
 
 
-def test_fit_swatch_writes_a_mixture_report_and_pair_terms_for_rgb_tables_too(three_paints, tmp_path, capsys):
+def test_fit_swatch_writes_a_mixture_report(three_paints, tmp_path, capsys):
     m, _ = three_paints
     two = m.select([set(p) <= {"P5", "P9"} for p in m.pigments])
     table = write_spectral_table(tmp_path / "two.csv", two)
@@ -216,15 +216,6 @@ def test_fit_swatch_writes_a_mixture_report_and_pair_terms_for_rgb_tables_too(th
 
     with Image.open(report) as im:
         assert im.size[0] > 600
-    # An RGB table's pigments are smooth spectra: its measured pairs get terms as well, fitted to its sRGB rows.
-    lines = (ROOT / "data" / "ntu-wpsm" / "ntu-rgb-train.csv").read_text().splitlines()
-    rgb = tmp_path / "rgb.csv"
-    rgb.write_text("\n".join([lines[0]] + [r for r in lines[1:] if set(r.split(",")[0].split("+")) <= {"P5", "P9",
-                                                                                                  "paper"}]) + "\n")
-    assert main(["fit-swatch", "--table", str(rgb), "-o", str(tmp_path / "x.json"), "--max-steps", "40",
-                 "--allow-unconverged"]) == 0  # fmt: skip
-    assert json.loads((tmp_path / "x.json").read_text())["pair_terms"]["pairs"][0]["pigments"] == ["P5", "P9"]
-
 
 
 def test_fitted_pair_terms_stay_within_what_a_library_file_may_hold(monkeypatch):

@@ -72,6 +72,11 @@ def run_library(args, m: diffwash.measurements.Measurements, out: Path, report: 
     print(f"  Levenberg-Marquardt {status} in {fit.iterations} steps")
     for c in fit.convergence:
         print(f"  {c.describe()}")
+    terms = fit.library.palette.pairs
+    if terms is not None and terms.inferred:
+        n = len(terms.inferred)
+        print(f"  pair terms inferred for {n} pair{'s' if n != 1 else ''} never measured mixed, from their paints' "
+              "effects in the measured pairs (marked \"inferred\" in the library; docs/mixing.md)")  # fmt: skip
     print_uncertainty(fit.library)
     if not fit.converged and not args.allow_unconverged:
         far = "; ".join(c.describe() for c in fit.convergence if not c)

@@ -10,6 +10,7 @@ and diffwash.fit.fit_table(CSV). A fit that does not converge writes nothing and
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
@@ -170,8 +171,7 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
     if args.loss is not None:
         raise DiffwashError("does not apply to cards of several pigments (fitted jointly in CIEDE2000: "
                             "docs/fitting.md)", field="--loss")  # fmt: skip
-    model = diffwash.fit.MixModel(weights=args.mixing == "weights", prior=diffwash.fit.CARD_PRIOR,
-                                  pairs=False)  # as `fit_swatch_mixtures`'s default (`CARD_MODEL`)  # fmt: skip
+    model = dataclasses.replace(diffwash.fit.CARD_MODEL, weights=args.mixing == "weights")
     fit = diffwash.fit.fit_swatch_mixtures(args.photos, args.layout, name=args.name, model=model,
                                            max_steps=args.max_steps, checker=args.checker,
                                            tone_curve=args.tone_curve)  # fmt: skip

@@ -21,6 +21,7 @@ from .photos import SWATCH_MODEL as SWATCH_MODEL
 from .photos import PatchResult as PatchResult
 from .photos import SwatchFit as SwatchFit
 from .photos import fit_swatches as fit_swatches
+from .photos import CARD_MODEL as CARD_MODEL
 from .photos import CARD_PRIOR as CARD_PRIOR
 from .photos import SwatchMixtureFit as SwatchMixtureFit
 from .photos import fit_swatch_mixtures as fit_swatch_mixtures

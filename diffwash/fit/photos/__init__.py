@@ -7,7 +7,7 @@ The photo family of `diffwash.fit` (docs/fitting.md, "Swatch photos"):
   `SWATCH_MODEL` is the fit's default `diffwash.fit.FitModel`.
 - `fit_swatch_mixtures(photos, layouts)`: several pigments from cards whose layouts name each patch's
   paint, alone or mixed, measured as above and fitted jointly by `diffwash.fit.tables.fit_mixtures`
-  (`SwatchMixtureFit`; `CARD_PRIOR`, the cards' population prior).
+  (`SwatchMixtureFit`; `CARD_MODEL`, its default model, and `CARD_PRIOR`, the cards' population prior).
 - Layouts: `read_layout`, `parse_layout` (a `Layout`), and `swatch_pigments`, the pigments a layout names.
 
 Inside: `_photo` (layouts, linearisation, calibration from the paper or references, patch statistics),

@@ -40,7 +40,7 @@ from ._photo import GROUNDS, Calibration, _name_key, patch_paints
 from ._swatch import PatchResult, _bounds, _default_name, _measure_all, _Photo, lab_sd
 from .._kmfit import delta_e_displayed
 
-__all__ = ["SwatchMixtureFit", "fit_swatch_mixtures"]
+__all__ = ["SwatchMixtureFit", "fit_swatch_mixtures", "CARD_MODEL", "CARD_PRIOR"]
 
 
 @dataclass(frozen=True)

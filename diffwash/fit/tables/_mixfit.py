@@ -37,7 +37,7 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import equinox as eqx
 import jax
@@ -181,6 +181,23 @@ def _one_layer(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The rows of `A` (N, L, P) that are a single layer (the rest are glaze stacks), and their amounts (n, P)."""
     rows = np.flatnonzero(np.count_nonzero(A.sum(axis=2), axis=1) <= 1)
     return rows, A[rows].sum(axis=1)
+
+
+class _PairRows(NamedTuple):
+    """The rows pair terms are fitted to (a table's single layers: a stack's layers get no fitted terms): their
+    indices `one` (n,), amounts `A1` (n, P), grounds on the palette's bands `G1` (n, B) and measured CIELAB `lab1`."""
+
+    one: np.ndarray
+    A1: np.ndarray
+    G1: np.ndarray
+    lab1: np.ndarray
+
+    @classmethod
+    def of(cls, m: Measurements, names, grounds: dict, obs: spectral.Observation) -> "_PairRows":
+        """`m`'s, with `grounds` each ground's reflectance on the palette's bands (an RGB table's: smooth spectra)."""
+        one, A1 = _one_layer(_dense(m, list(names))[0])
+        G = np.stack([np.asarray(grounds[g], np.float64) for g in m.ground])
+        return cls(one, A1, G[one], measured_lab(m, obs)[one])
 
 
 def _layer(K, S, A, G, gamma, w, k2, own: bool = False, bands_first: bool = False):
@@ -466,11 +483,17 @@ def _fit_rgb(m: Measurements, names, model: MixModel, max_steps: int, rtol: floa
                        jnp.ones(len(m), dtype))  # weights: as its folds', which then share its compiled solver  # fmt: skip
     start, args = (coef0.reshape(1, -1), shared0), cast(obs.to_rgb)
     (flat, shared), ok, steps = _solve_in_chunks(fn, start, args, max_steps, rtol)
-    coef = flat.reshape(coef0.shape)
     gam, w, k2 = _shared(shared, P, model)
-    logks = np.asarray(coef, np.float64) @ phi.T
-    out = (np.exp(logks[:P]), np.exp(logks[P:]), np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2))
+    out = (*_rgb_spectra(flat, P), np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2))
     return (*out, ok, steps), grounds, obs, _RGBFit(fn, start, (flat, shared), args, max_steps, rtol)
+
+
+def _rgb_spectra(flat, P: int) -> tuple[np.ndarray, np.ndarray]:
+    """K and S (P, B) over `RGB_GRID` of an RGB fit's basis coefficients `flat` ((2P, n) in any shape: log K and
+    log S are their sums of `_rgb_basis`)."""
+    phi = _rgb_basis()
+    logks = np.asarray(flat, np.float64).reshape(2 * P, phi.shape[1]) @ phi.T
+    return np.exp(logks[:P]), np.exp(logks[P:])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -576,21 +599,22 @@ def fit_mixtures(
     w = w / np.exp(np.mean(np.log(w)))  # the weights' common scale is free: geometric mean 1
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
-    if model.pairs:  # from the rows of one layer (a stack's layers are not fitted pair terms)
-        A, _ = _dense(m, list(names))
-        G = np.stack([np.asarray(grounds[g], np.float64) for g in m.ground])  # on the palette's bands
-        one, A1 = _one_layer(A)
+    one_layer = None
+    if model.pairs:
+        one_layer = _PairRows.of(m, names, grounds, obs)
+        one, A1, G1, lab1 = one_layer
         if n_pairs := len(pairs(m)):
             say(f"pair terms ({n_pairs} pairs)")
-        lab1 = measured_lab(m, obs)[one]
-        terms, pairs_ok = _pairs.fit_pair_terms(palette, A1, G[one], lab1, obs.lab, k2, ridge=model.pair_ridge)
+        terms, pairs_ok = _pairs.fit_pair_terms(palette, A1, G1, lab1, obs.lab, k2, ridge=model.pair_ridge)
         palette = eqx.tree_at(lambda p: p.pairs, palette, terms, is_leaf=lambda x: x is None)
         stages.append(pairs_ok)
         if posterior and terms is not None:  # how well the terms predict their pairs elsewhere (`_model_errors`)
             held_seen = np.full(len(m), np.nan)
-            held_seen[one] = _pairs.held_out_de2000(palette, A1, G[one], lab1, obs.lab, k2, ridge=model.pair_ridge)
+            held_seen[one] = _pairs.held_out_de2000(palette, A1, G1, lab1, obs.lab, k2, ridge=model.pair_ridge)
         if model.infer_pairs and terms is not None:
             palette = eqx.tree_at(lambda p: p.pairs, palette, _pairs.infer_pair_terms(terms, len(names)))
+    # the folds infer their held-out pairs' terms where the fit inferred terms (`_fold_lab_with_pairs`)
+    fold_rows = one_layer if model.infer_pairs and palette.pairs is not None else None
     ok = all(bool(c) for c in stages)
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2)
     de, de_ab = residuals(lib, m)
@@ -605,21 +629,23 @@ def fit_mixtures(
     post = None
     if posterior and m.spectral and model.loss == "de2000":
         say("posterior")
-        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib, say, held_seen)
+        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib, say, held_seen, fold_rows)
         record["uncertainty"] = post.record
     elif posterior and not m.spectral:
         say("posterior")
-        post = _rgb_posterior(m, list(names), model, palette, k2, obs, lib, rgb_fit, say, held_seen)
+        post = _rgb_posterior(m, list(names), model, palette, k2, obs, lib, rgb_fit, say, held_seen, fold_rows)
         record["uncertainty"] = post.record
     lib = Library(palette=palette, grounds=grounds, observation=obs, k2=k2, fit=record, posterior=post)
     return MixtureFit(lib, de, de_ab, ok, steps, time.perf_counter() - t0, model, tuple(stages))
 
 
 def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library,
-                        say: Callable[[str], None] = lambda msg: None, held_seen: np.ndarray | None = None):  # fmt: skip
+                        say: Callable[[str], None] = lambda msg: None, held_seen: np.ndarray | None = None,
+                        fold_rows: _PairRows | None = None):  # fmt: skip
     """The fit's `_regions.Posterior`: Laplace covariance from the spectral stage's problem, each pigment's block
     bounded by its own rows, and the model error of each kind of row (`_model_errors`; `held_seen`: each row's
-    CIEDE2000 with it left out of its pair's terms, `_pairs.held_out_de2000`)."""
+    CIEDE2000 with it left out of its pair's terms, `_pairs.held_out_de2000`; `fold_rows`, where the fit inferred
+    pair terms: the rows a leave-pairs-out fold fits its own pairs' terms to, `_fold_lab_with_pairs`)."""
     P = len(names)
     dtype = jnp.zeros(()).dtype
     A, G = _dense(m, names)
@@ -650,17 +676,16 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
     pb = _seen._Problem(reflect, obs.lab, jnp.asarray(measured_lab(m, obs), dtype), band, float(model.ridge),
                         _SharedPrior(P, model, priors), basis=_refine_basis(obs, model, dtype))  # fmt: skip
     start = (band0, _shared_start(band0, priors, P, model))  # the fit's own start (`_fit_spectral`)
-    with_pairs = model.pairs and model.infer_pairs and palette.pairs is not None
-
     def refit(folds, what, pairs: bool = False, **steps):
         """Each fold's held-out CIELAB; `pairs`: predicted as the fit predicts a pair it never measured
         (`_fold_lab_with_pairs`)."""
         def predict(y, test):
             band, shared = y
             K, S = jnp.exp(band[:, :P]).T, jnp.exp(band[:, P:]).T
-            return _fold_lab_with_pairs(m, names, model, obs, lib.grounds, (K, S, *_shared(shared, P, model)), test)
+            return _fold_lab_with_pairs(m, names, model, obs, lib.grounds, fold_rows,
+                                        (K, S, *_shared(shared, P, model)), test)  # fmt: skip
 
-        predict = predict if pairs and with_pairs else None
+        predict = predict if pairs and fold_rows is not None else None
         return _posterior.refit_held_out(spectral, start, pb, folds, rtol=1e-7 if dtype == jnp.float64 else 1e-4,
                                          progress=lambda i, n: say(f"{what} fold {i}/{n}"), predict=predict, **steps)
 
@@ -668,21 +693,19 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
                        refit, {"noise_log_reflectance": round(sigma, 6)}, held_seen)  # fmt: skip
 
 
-def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, grounds: dict, params,
+def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, grounds: dict, rows: _PairRows, params,
                          test: np.ndarray) -> np.ndarray:  # fmt: skip
     """A leave-pairs-out fold's held-out rows' CIELAB as the fit would predict them from the fold's rows alone: the
     fold's pigments `params` = (K, S, gamma, weights, k2) on the palette's bands (`grounds`: each ground's
-    reflectance there), its measured pairs' terms fitted to its own rows (the whole table's shapes: one compiled
-    program for every fold), and the held-out pairs' terms inferred from those (`_pairs.infer_pair_terms`)."""
+    reflectance there), its measured pairs' terms fitted to its own among the table's single-layer `rows` (the
+    whole table's shapes: one compiled program for every fold), and the held-out pairs' terms inferred from those
+    (`_pairs.infer_pair_terms`)."""
     K, S, gam, w, k2 = params
     P = len(names)
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
-    A, _ = _dense(m, list(names))
-    G = np.stack([np.asarray(grounds[g], np.float64) for g in m.ground])
-    one, A1 = _one_layer(A)
-    terms, _ = _pairs.fit_pair_terms(palette, A1, G[one], measured_lab(m, obs)[one], obs.lab, k2,
-                                     ridge=model.pair_ridge, use=~np.asarray(test)[one])  # fmt: skip
+    terms, _ = _pairs.fit_pair_terms(palette, rows.A1, rows.G1, rows.lab1, obs.lab, k2, ridge=model.pair_ridge,
+                                     use=~np.asarray(test)[rows.one])  # fmt: skip
     palette = eqx.tree_at(lambda p: p.pairs, palette, _pairs.infer_pair_terms(terms, P), is_leaf=lambda x: x is None)
     held = m.select(np.asarray(test))
     lib = Library(palette=palette, grounds=dict(grounds), observation=obs, k2=float(k2))
@@ -731,8 +754,8 @@ def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: 
 
 
 def _rgb_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library, fit: "_RGBFit",
-                   say: Callable[[str], None] = lambda msg: None,
-                   held_seen: np.ndarray | None = None) -> _regions.Posterior:  # fmt: skip
+                   say: Callable[[str], None] = lambda msg: None, held_seen: np.ndarray | None = None,
+                   fold_rows: _PairRows | None = None) -> _regions.Posterior:  # fmt: skip
     """An RGB fit's `_regions.Posterior`, as a spectral fit's (`_regions_of`): the Laplace covariance of its basis
     coefficients and amount laws (`_rgb_laplace`) carried onto the bands, and its folds refitted from the fit's own
     start to the fit's own test (an RGB fit is quick); a leave-pairs-out fold's held-out pairs predicted with the
@@ -741,9 +764,6 @@ def _rgb_posterior(m: Measurements, names, model: MixModel, palette, k2: float, 
     F, diag, sigma = _rgb_laplace(fit, len(m), P, model.gamma)
     from_prior = _from_priors(fit.fn.priors, F, diag, sigma, int(np.asarray(palette.K).shape[1]), P, model)
 
-    with_pairs = model.pairs and model.infer_pairs and palette.pairs is not None
-    phi = np.asarray(fit.fn.phi, np.float64)
-
     def refit(folds, what, pairs: bool = False, **steps):
         out = []
         for i, test in enumerate(folds):
@@ -751,10 +771,9 @@ def _rgb_posterior(m: Measurements, names, model: MixModel, palette, k2: float, 
             w = jnp.asarray(~np.asarray(test), fit.fn.Y.dtype)
             fold = eqx.tree_at(lambda f: f.w, fit.fn, w)
             (flat, shared), _, _ = _solve_in_chunks(fold, fit.start, fit.args, fit.max_steps, fit.rtol, judge=False)
-            if pairs and with_pairs:
-                logks = np.asarray(flat, np.float64).reshape(fit.fn.coef0.shape) @ phi.T
-                params = (np.exp(logks[:P]), np.exp(logks[P:]), *_shared(shared, P, model))
-                out.append(_fold_lab_with_pairs(m, names, model, obs, lib.grounds, params, test))
+            if pairs and fold_rows is not None:
+                params = (*_rgb_spectra(flat, P), *_shared(shared, P, model))
+                out.append(_fold_lab_with_pairs(m, names, model, obs, lib.grounds, fold_rows, params, test))
             else:
                 out.append(np.asarray(_rgb_lab(fit.fn, (flat, shared), fit.args), np.float64)[np.asarray(test)])
         return out

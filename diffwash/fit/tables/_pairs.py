@@ -198,17 +198,17 @@ def fit_pair_terms(
     if palette.wavelengths is None:
         raise ValueError("pair terms need a spectral palette (a band grid)")
     pairs = measured_pairs(np.asarray(A))
-    if use is not None and pairs:  # the pairs with rows to fit; the others are padding of the same shapes
-        idx, mask = _rows(pairs, np.asarray(A))
-        keep = np.flatnonzero((mask & np.asarray(use, bool)[idx]).any(axis=1))
-    else:
-        keep = np.arange(len(pairs))
-    if not len(keep):
-        return None, Convergence(converged=True, steps=0, stage="pair terms (none measured)")
+    none = None, Convergence(converged=True, steps=0, stage="pair terms (none measured)")
+    if not pairs:
+        return none
     dtype = jnp.zeros(()).dtype
+    packed = _pack(palette, pairs, A, G, lab_target, dtype, use)
+    keep = np.flatnonzero(np.asarray(packed[-1]).any(axis=1))  # pairs with rows to fit; the rest pad the shapes
+    if not len(keep):
+        return none
     centres, width = _basis(palette.wavelengths, bumps)
     theta, done, dec = _fit_pairs(lab_of, palette.law.reference, jnp.asarray(k2, dtype), palette.wavelengths, bumps, ridge,
-                                  steps, *_pack(palette, pairs, A, G, lab_target, dtype, use))  # fmt: skip
+                                  steps, *packed)  # fmt: skip
     theta, done, dec = theta[keep], np.asarray(done)[keep], np.asarray(dec)[keep]
     pairs = [pairs[q] for q in keep]
     ij = np.asarray(pairs)
@@ -272,10 +272,11 @@ def infer_pair_terms(terms: mixing.PairTerms | None, P: int, ridge: float = EFFE
     """
     if terms is None or not terms.members:
         return terms
-    measured = [tuple(int(x) for x in p) for p in terms.members if tuple(p) not in set(terms.inferred)]
-    rows = [q for q, p in enumerate(terms.members) if tuple(int(x) for x in p) in set(measured)]
-    mixed = sorted({i for p in measured for i in p})
-    new = [(i, j) for a, i in enumerate(mixed) for j in mixed[a + 1 :] if (i, j) not in set(measured)]
+    before = set(terms.inferred)  # inferred earlier: inferred again, from the measured pairs alone
+    rows = [q for q, p in enumerate(terms.members) if tuple(p) not in before]
+    measured = [tuple(int(x) for x in terms.members[q]) for q in rows]
+    mixed, seen = sorted({i for p in measured for i in p}), set(measured)
+    new = [(i, j) for a, i in enumerate(mixed) for j in mixed[a + 1 :] if (i, j) not in seen]
     if not new:
         return terms
     q = np.asarray(rows)

@@ -58,10 +58,11 @@ def test_pair_terms_out_of_steps_at_their_minimum_are_converged():
         def residuals(theta):  # a valley whose floor LM creeps along: at the minimum in few steps, never "still"
             return jnp.asarray([10 * (theta[1] - theta[0] ** 2), 1 - theta[0], 0.3])
 
-        th, done, dec = _pairs._lm(residuals, jnp.asarray([1.0 + 1e-9, 1.0]), 3)
-        assert bool(done) and float(dec) <= _bandlsq.GN_TOL
-        th, done, dec = _pairs._lm(residuals, jnp.asarray([-1.2, 1.0]), 2)
-        assert not bool(done) and float(dec) > _bandlsq.GN_TOL
+        jacobians = jax.vmap(lambda th: (residuals(th), jax.jacfwd(residuals)(th)))  # one problem of a batch
+        th, done, dec = _pairs._lm(jacobians, np.asarray([[1.0 + 1e-9, 1.0]]), 3)
+        assert bool(done[0]) and float(dec[0]) <= _bandlsq.GN_TOL
+        th, done, dec = _pairs._lm(jacobians, np.asarray([[-1.2, 1.0]]), 2)
+        assert not bool(done[0]) and float(dec[0]) > _bandlsq.GN_TOL
 
 
 def test_the_row_space_step_is_the_dense_step():

@@ -1,6 +1,6 @@
 """Mixing real paint: fit and predict time, peak memory, and scores on pairs held out of the fit.
 
-    python benchmarks/bench_mix.py [--folds 4] [--only speed,seen,spectral,weights,rgb,mixbox,single,paper,small,never-mixed]
+    python benchmarks/bench_mix.py [--folds 4] [--only speed,seen,seen-rgb,spectral,weights,rgb,mixbox,single,paper,small,never-mixed]
 
 Prints Markdown tables, on the NTU WPSM measurements in data/ntu-wpsm/:
 
@@ -18,7 +18,8 @@ Prints Markdown tables, on the NTU WPSM measurements in data/ntu-wpsm/:
    measured colours of the two paints, each at the mixture's total amount, at the ratio of their amounts.
 3. Rows of measured pairs held out at random (a fifth of the mixture rows, seeds 0 and 1; every pair is still
    seen mixed in training, as in the dataset's own test split): the same scores with and without the pair
-   terms (`MixModel.pairs`). The pair terms' ridge and number of bumps were chosen on seed 1.
+   terms (`MixModel.pairs`). The pair terms' ridge and number of bumps were chosen on seed 1. `seen-rgb`: the
+   same on the 8-bit sRGB table (its pigments smooth spectra, its pair terms fitted in CIEDE2000 of its rows).
 4. `single`: single paints at held-out amounts through the command line, as a user would: the single-paint rows
    of a table with each paint's 2nd, 4th, ... amounts held out (the split of docs/fitting.md), `diffwash
    fit-swatch --table` of the rest, `diffwash predict` of the held-out rows; mean CIEDE2000 of the predicted
@@ -146,13 +147,13 @@ def cross_validate(name: str, path: Path, model: MixModel | None, folds: int, se
           flush=True)  # fmt: skip
 
 
-def seen_pairs(seed: int) -> None:
+def seen_pairs(seed: int, path: Path = SPECTRAL) -> None:
     """Held-out rows of pairs the fit saw mixed: one fit, scored with its pair terms and without them."""
     import dataclasses
 
     import equinox as eqx
 
-    m = measurements.read_measurements(SPECTRAL)
+    m = measurements.read_measurements(path)
     held = np.asarray(m.is_mixture) & (np.random.default_rng(seed).random(len(m)) < 0.2)
     t0 = time.perf_counter()
     fit = fit_mixtures(m.select(~held))
@@ -162,7 +163,7 @@ def seen_pairs(seed: int) -> None:
     for name, lib in (("Duncan (the same pigments, no pair terms)", duncan), ("with pair terms", fit.library)):
         s = score_library(lib, m.select(held))
         regions = f"{100 * _held_by_regions(lib, m.select(held)):.1f}%" if lib is fit.library else "-"
-        print(f"| {seed} | {name} | {s['rows']} | {100 * s['share_de_ab_5']:.1f}% | {s['mean_de2000']:.2f} | {regions} | "
+        print(f"| {path.name} | {seed} | {name} | {s['rows']} | {100 * s['share_de_ab_5']:.1f}% | {s['mean_de2000']:.2f} | {regions} | "
               f"{seconds:.0f} s |", flush=True)  # fmt: skip
 
 
@@ -364,11 +365,14 @@ def main() -> None:
     only = args.only.split(",")
     if "speed" in only:
         speed()
-    if "seen" in only:
+    seen = [path for k, path in (("seen", SPECTRAL), ("seen-rgb", RGB)) if k in only]
+    if seen:
         print("\nRows of measured pairs held out at random (a fifth of the mixtures):\n")
-        print("| seed | model | rows | within dE*ab 5 | mean dE2000 | held by the 90% regions | fit time |\n|---|---|---|---|---|---|---|")
-        for seed in (0, 1):
-            seen_pairs(seed)
+        print("| table | seed | model | rows | within dE*ab 5 | mean dE2000 | held by the 90% regions | fit time |\n"
+              "|---|---|---|---|---|---|---|---|")
+        for path in seen:
+            for seed in (0, 1):
+                seen_pairs(seed, path)
     if "single" in only:
         print("\nSingle paints at held-out amounts, `fit-swatch --table` then `diffwash predict`:\n")
         print("| table | training rows | held-out rows | mean dE2000 | median | max | fit (CLI) |\n|---|---|---|---|---|---|---|")

@@ -1,9 +1,11 @@
 """When a fit is converged: at a minimum (the loss stopped falling, or a Gauss-Newton step would gain almost
 nothing), never merely because it ran out of steps; a fit stopped far from a minimum says how far."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 import pytest
 from test_mix_seen import _toy
 
@@ -78,3 +80,53 @@ def test_the_row_space_step_is_the_dense_step():
             step, grad = _seen._row_step(_seen._jacobians(pb, y), 0.5, mu)
             np.testing.assert_allclose(step, _seen._dense_step(H, g, mu), rtol=1e-7, atol=1e-10)
             np.testing.assert_allclose(grad, g, rtol=1e-10, atol=1e-12)
+
+
+class _Arrow(eqx.Module):
+    """A small band-separable problem (3 bands of 2 parameters, one shared) that takes many steps to solve."""
+
+    y: jax.Array
+
+    def __call__(self, p, args):
+        band, shared = p
+        x = jnp.exp(band)
+        rows = (x[:, :1] * jnp.linspace(0.0, 1.0, 5) + x[:, 1:] ** 2) * shared[0] - self.y
+        return rows, 0.1 * (shared - 1.0)
+
+
+class _Compiles:
+    def __init__(self):
+        self.n = 0
+
+    def __call__(self, event, duration, **kwargs):
+        self.n += event == "/jax/core/compile/backend_compile_duration"
+
+    def __enter__(self):
+        jax.monitoring.register_event_duration_secs_listener(self)
+        return self
+
+    def __exit__(self, *exc):
+        jax.monitoring.unregister_event_duration_listener(self)
+
+
+def test_a_capped_solve_is_a_solve_of_that_many_steps_and_runs_the_bounds_compiled_program():
+    """`BandLevenbergMarquardt(cap=k)` under `max_steps=n` stops where `max_steps=k` would, with the same result,
+    and compiles nothing that `max_steps=n` did not: a fit's cross-validation folds reuse the fit's program."""
+    with jax.enable_x64(True):
+        fn = _Arrow(jnp.asarray(np.random.default_rng(0).uniform(1.0, 3.0, (3, 5))))
+        y0 = (jnp.full((3, 2), -2.0), jnp.asarray([0.3]))
+        solve = lambda n, cap=None: optx.least_squares(  # noqa: E731
+            fn, _bandlsq.BandLevenbergMarquardt(rtol=1e-12, atol=1e-12, cap=cap), y0, max_steps=n, throw=False)
+        short = solve(3)
+        full = solve(60)
+        assert int(full.stats["num_steps"]) > 3  # the cap below cuts a longer solve short
+        with _Compiles() as compiles:
+            capped = solve(60, cap=3)
+        assert compiles.n == 0
+        assert int(capped.stats["num_steps"]) == int(short.stats["num_steps"]) == 3
+        assert capped.result == short.result == optx.RESULTS.nonlinear_max_steps_reached
+        for a, b in zip(capped.value, short.value):
+            np.testing.assert_allclose(a, b, rtol=1e-12)
+        # A cap the solve does not reach changes nothing.
+        np.testing.assert_array_equal(solve(60, cap=60).value[0], full.value[0])
+        assert solve(60, cap=60).result == full.result

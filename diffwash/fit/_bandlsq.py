@@ -197,6 +197,10 @@ class BandLevenbergMarquardt(optx.AbstractGaussNewton):
 
     - `rtol`, `atol`: the tolerances of optimistix's Cauchy termination.
     - `norm`: the norm of that termination (default `optimistix.max_norm`).
+    - `cap`: stop after this many steps, as `optimistix.least_squares(..., max_steps=cap)` would (its result
+      `nonlinear_max_steps_reached`), but as an array: solves capped at other step counts under one `max_steps`
+      share one compiled program (a fit's cross-validation folds, capped below the fit's own bound). Default:
+      no cap but `max_steps`.
     """
 
     rtol: float
@@ -205,14 +209,23 @@ class BandLevenbergMarquardt(optx.AbstractGaussNewton):
     descent: _BandDampedNewtonDescent
     search: optx.ClassicalTrustRegion
     verbose: Callable[..., None]
+    cap: Array
 
-    def __init__(self, rtol: float, atol: float, norm: Callable[[PyTree], Scalar] = optx.max_norm):
+    def __init__(self, rtol: float, atol: float, norm: Callable[[PyTree], Scalar] = optx.max_norm,
+                 cap: int | None = None):  # fmt: skip
         self.rtol = rtol
         self.atol = atol
         self.norm = norm
         self.descent = _BandDampedNewtonDescent()
         self.search = optx.ClassicalTrustRegion()
         self.verbose = _quiet
+        self.cap = jnp.asarray(np.iinfo(np.int32).max if cap is None else cap, jnp.int32)
+
+    def terminate(self, fn, y, args, options, state, tags):
+        done, result = super().terminate(fn, y, args, options, state, tags)
+        capped = state.num_steps >= self.cap
+        # A result other than `successful` also ends optimistix's loop: the cap's is set only once it is reached.
+        return done | capped, optx.RESULTS.where(done | ~capped, result, optx.RESULTS.nonlinear_max_steps_reached)
 
 
 def _quiet(**kwargs) -> None:

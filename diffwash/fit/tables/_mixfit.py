@@ -364,8 +364,7 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
     priors = _priors.table_priors(np.asarray(A), np.asarray(G), model.one_amount)
     shared0 = _shared_start(band0, priors, P, model)
     fn = _SpectralResiduals(reflect, Y, band0, priors, jnp.ones(len(m), dtype))  # weights: as its folds'
-    if 3 * len(m) < band0.size:  # few rows, many band parameters: most band directions are the weak prior's,
-        # along which the solver would creep to max_steps; stop when a chunk of steps no longer lowers the loss
+    if _solved_in_chunks(m, band0):
         y, ok, steps = _solve_in_chunks(fn, (band0, shared0), None, max_steps, rtol, judge=model.loss != "de2000")
         ok = dataclasses.replace(ok, stage="log-reflectance fit")
     else:
@@ -384,6 +383,17 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
     gam, w, k2 = _shared(shared, P, model)
     K, S = np.exp(np.asarray(band[:, :P], np.float64)).T, np.exp(np.asarray(band[:, P:], np.float64)).T
     return K, S, np.asarray(gam, np.float64), np.asarray(w, np.float64), float(k2), ok, steps
+
+
+def _solved_in_chunks(m: Measurements, band0) -> bool:
+    """Few rows, many band parameters: most band directions are the weak prior's, along which the solver would creep
+    to max_steps; `_fit_spectral` stops when a chunk of steps no longer lowers the loss (`_solve_in_chunks`)."""
+    return 3 * len(m) < band0.size
+
+
+def _compiled_bound(m: Measurements, band0, max_steps: int) -> int:
+    """The `max_steps` `_fit_spectral`'s log-reflectance solve is compiled with (its folds share it)."""
+    return min(CHUNK, max_steps) if _solved_in_chunks(m, band0) else max_steps
 
 
 def _rgb_basis(n: int = 10) -> np.ndarray:
@@ -629,7 +639,7 @@ def fit_mixtures(
     post = None
     if posterior and m.spectral and model.loss == "de2000":
         say("posterior")
-        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib, say, held_seen, fold_rows)
+        post = _spectral_posterior(m, list(names), model, palette, k2, obs, lib, say, held_seen, fold_rows, max_steps)
         record["uncertainty"] = post.record
     elif posterior and not m.spectral:
         say("posterior")
@@ -641,7 +651,7 @@ def fit_mixtures(
 
 def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: float, obs, lib: Library,
                         say: Callable[[str], None] = lambda msg: None, held_seen: np.ndarray | None = None,
-                        fold_rows: _PairRows | None = None):  # fmt: skip
+                        fold_rows: _PairRows | None = None, max_steps: int = 400):  # fmt: skip
     """The fit's `_regions.Posterior`: Laplace covariance from the spectral stage's problem, each pigment's block
     bounded by its own rows, and the model error of each kind of row (`_model_errors`; `held_seen`: each row's
     CIEDE2000 with it left out of its pair's terms, `_pairs.held_out_de2000`; `fold_rows`, where the fit inferred
@@ -687,6 +697,7 @@ def _spectral_posterior(m: Measurements, names, model: MixModel, palette, k2: fl
 
         predict = predict if pairs and fold_rows is not None else None
         return _posterior.refit_held_out(spectral, start, pb, folds, rtol=1e-7 if dtype == jnp.float64 else 1e-4,
+                                         bound=_compiled_bound(m, start[0], max_steps),
                                          progress=lambda i, n: say(f"{what} fold {i}/{n}"), predict=predict, **steps)
 
     return _regions_of(m, names, (F, diag, sigma), from_prior, palette, k2, obs, lib, (np.asarray(A), np.asarray(G)),

@@ -112,7 +112,7 @@ def factored(full: np.ndarray, rank: int = RANK) -> tuple[np.ndarray, np.ndarray
 
 
 def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray], *, rtol: float,
-                   steps: int = FOLD_STEPS, refine_steps: int = FOLD_REFINE_STEPS,
+                   steps: int = FOLD_STEPS, refine_steps: int = FOLD_REFINE_STEPS, bound: int = 0,
                    progress: Callable[[int, int], None] | None = None,
                    predict: Callable[[Any, np.ndarray], np.ndarray] | None = None) -> list[np.ndarray]:  # fmt: skip
     """Each fold's rows' CIELAB as predicted by the fit refitted without them, in fold order.
@@ -124,14 +124,17 @@ def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray],
     which saw the fold's rows, enters a fold; the folds and the fit share its compiled programs (the rows' weights
     are their argument). `progress(i, n)` is called as fold i of n begins. `predict(y, test)`: the held-out rows'
     CIELAB from the fold's parameters `y` (default: the pigments' alone, `pb.reflect`), for a fit whose
-    predictions hold more than its pigments (pair terms, fitted to the fold's own rows)."""
-    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
+    predictions hold more than its pigments (pair terms, fitted to the fold's own rows). `bound`: the `max_steps` the
+    fit's own log-reflectance solve was compiled with; folds capped at no more steps run under it, capped by the
+    solver (`BandLevenbergMarquardt.cap`), and reuse its compiled program (one compilation fewer per fit)."""
+    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol, cap=steps)
+    bound = bound if steps <= bound else steps
 
     def one(test):
         test = np.asarray(test)
         w = jnp.asarray(~test, start[0].dtype)
         fold = eqx.tree_at(lambda f: f.w, spectral, w, is_leaf=lambda x: x is None)
-        sol = optx.least_squares(fold, solver, start, max_steps=steps, throw=False)
+        sol = optx.least_squares(fold, solver, start, max_steps=bound, throw=False)
         y, _, _ = _seen.refine_in_de2000(pb.reflect, pb.lab_of, pb.lab_target, sol.value, ridge=pb.ridge,
                                          shared_prior=pb.shared_prior, max_steps=refine_steps,
                                          rtol=max(rtol, 1e-5), weights=w, basis=pb.basis)  # fmt: skip

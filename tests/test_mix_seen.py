@@ -126,8 +126,8 @@ def two_paints():
 
 
 def test_the_refinement_lowers_the_colour_error_of_a_real_fit(two_paints):
-    plain = fit_mixtures(two_paints, model=MixModel(loss="spectral", pairs=False))
-    seen = fit_mixtures(two_paints, model=MixModel(pairs=False))
+    plain = fit_mixtures(two_paints, model=MixModel(loss="spectral", pairs=False), posterior=False)
+    seen = fit_mixtures(two_paints, model=MixModel(pairs=False), posterior=False)
     assert seen.library.fit["model"]["loss"] == "de2000"
     assert seen.library.palette.pairs is None and "pair_terms" not in seen.library.to_dict()  # pairs=False
     assert np.all(np.isfinite(seen.delta_e))

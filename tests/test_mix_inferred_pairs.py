@@ -138,6 +138,7 @@ def test_a_fit_infers_the_pair_it_never_measured_and_its_folds_predict_as_it_doe
     pair = tuple(sorted((names.index("P5"), names.index("P9"))))
     assert lib.palette.pairs.inferred == (pair,) and len(lib.palette.pairs.members) == 3
     assert lib.fit["model"]["infer_pairs"] is True
+    assert lib.fit["model"]["pair_ridge"] == _pairs.PAIR_RIDGE != _mixfit.RGB_PAIR_RIDGE  # a spectral table's
     # The unseen pairs' model error comes from leave-pairs-out folds predicted the same way: each fold infers
     # its held-out pairs' terms from its own measured pairs (one call per fold that holds rows out, all its rows).
     assert len(calls) == 2 and all(np.isfinite(lab).all() and len(lab) == n for n, lab in calls)
@@ -164,6 +165,8 @@ def test_an_rgb_table_gets_pair_terms_and_infers_the_pair_it_never_measured(tmp_
            for e in json.loads((tmp_path / "lib.json").read_text())["pair_terms"]["pairs"]}  # fmt: skip
     assert got == {("P1", "P5"): False, ("P1", "P9"): False, ("P5", "P9"): True}
     assert len(calls) == 2
+    # Three channels pin a pair's terms less than 41 bands: an RGB table's ridge towards Duncan is its own.
+    assert json.loads((tmp_path / "lib.json").read_text())["fit"]["model"]["pair_ridge"] == _mixfit.RGB_PAIR_RIDGE
     pred = library.load_library(tmp_path / "lib.json").predict(["P5+P9", "P1+P5"], ["0.02+0.02", "0.02+0.02"])
     assert np.isfinite(pred.lab).all() and np.isfinite(pred.de2000_90).all()
 

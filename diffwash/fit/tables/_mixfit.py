@@ -72,6 +72,11 @@ RGB_RIDGE = 2.0
 #: An RGB fit stops when a step changes the parameters and the loss by less than this (relative): its flat
 #: directions (spectra three channels cannot tell apart) otherwise creep on for hundreds of steps in float32.
 RGB_RTOL = 1e-2
+#: An RGB table's pair terms' ridge towards Duncan (`MixModel.pair_ridge`; spectral tables: `_pairs.PAIR_RIDGE`).
+#: Three channels pin a pair's spectral terms less than 41 bands do: on rows of measured pairs held out of the
+#: NTU RGB table (docs/mixing.md, `bench_mix.py --only seen-rgb`), 3 predicted them better than 1 on four seeds
+#: (mean CIEDE2000 2.01 -> 1.93, 2.28 -> 2.16, 2.22 -> 2.11, 1.96 -> 1.85), pairs never mixed as well as before.
+RGB_PAIR_RIDGE = 3.0
 
 
 @dataclass(frozen=True)
@@ -95,7 +100,8 @@ class MixModel:
       (`diffwash.fit.tables._seen.smooth_basis`); 0: every band free (spiky spectra; docs/mixing.md).
     - `pairs`: after the pigments, fit `diffwash.mixing.PairTerms` for every pair the table measured mixed
       (`diffwash.fit.tables._pairs`; an RGB table's: on its pigments' smooth spectra, in CIEDE2000 of its sRGB).
-    - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter).
+    - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter; None: `_pairs.PAIR_RIDGE` for
+      spectral tables, `RGB_PAIR_RIDGE` for RGB tables; a fit's `model` holds the value it used).
     - `infer_pairs`: with `pairs`, a pair never measured mixed whose pigments were each measured mixed with others
       takes terms inferred from those pigments' effects in their measured pairs (`_pairs.infer_pair_terms`);
       off: such pairs keep Duncan's law.
@@ -116,7 +122,7 @@ class MixModel:
     ridge: float = 3.0
     refine_spacing: float = 50.0
     pairs: bool = True
-    pair_ridge: float = _pairs.PAIR_RIDGE
+    pair_ridge: float | None = None
     infer_pairs: bool = True
     scatter_spread: float = _priors.SCATTER_SPREAD
     gamma_spread: float = _priors.GAMMA_SPREAD
@@ -596,6 +602,8 @@ def fit_mixtures(
     say = progress if progress is not None else (lambda msg: None)
     names = m.names
     held_seen = None
+    if model.pair_ridge is None:
+        model = dataclasses.replace(model, pair_ridge=_pairs.PAIR_RIDGE if m.spectral else RGB_PAIR_RIDGE)
     if rtol is None:  # RGB: see RGB_RTOL
         rtol = 1e-7 if jnp.zeros(()).dtype == jnp.float64 else (1e-4 if m.spectral else RGB_RTOL)
     if m.spectral:

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 import pytest
-from test_mix_seen import _toy
+from test_mix_seen import _toy, _Traces
 
 from diffwash.fit import _bandlsq
 from diffwash.fit.tables import _pairs, _seen
@@ -94,21 +94,6 @@ class _Arrow(eqx.Module):
         return rows, 0.1 * (shared - 1.0)
 
 
-class _Compiles:
-    def __init__(self):
-        self.n = 0
-
-    def __call__(self, event, duration, **kwargs):
-        self.n += event == "/jax/core/compile/backend_compile_duration"
-
-    def __enter__(self):
-        jax.monitoring.register_event_duration_secs_listener(self)
-        return self
-
-    def __exit__(self, *exc):
-        jax.monitoring.unregister_event_duration_listener(self)
-
-
 def test_a_capped_solve_is_a_solve_of_that_many_steps_and_runs_the_bounds_compiled_program():
     """`BandLevenbergMarquardt(cap=k)` under `max_steps=n` stops where `max_steps=k` would, with the same result,
     and compiles nothing that `max_steps=n` did not: a fit's cross-validation folds reuse the fit's program."""
@@ -120,7 +105,7 @@ def test_a_capped_solve_is_a_solve_of_that_many_steps_and_runs_the_bounds_compil
         short = solve(3)
         full = solve(60)
         assert int(full.stats["num_steps"]) > 3  # the cap below cuts a longer solve short
-        with _Compiles() as compiles:
+        with _Traces("/jax/core/compile/backend_compile_duration") as compiles:
             capped = solve(60, cap=3)
         assert compiles.n == 0
         assert int(capped.stats["num_steps"]) == int(short.stats["num_steps"]) == 3

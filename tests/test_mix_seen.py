@@ -151,13 +151,15 @@ def test_refine_is_refused_where_it_does_not_apply(tmp_path, capsys):
 
 
 class _Traces:
-    """Counts JAX's traces (`jaxpr_trace_duration` events: every jit that is traced, found in a cache or not)."""
+    """Counts JAX's traces (`jaxpr_trace_duration` events: every jit that is traced, found in a cache or not), or
+    another of its duration events (`backend_compile_duration`: every program XLA compiles)."""
 
-    def __init__(self):
+    def __init__(self, event: str = "/jax/core/compile/jaxpr_trace_duration"):
+        self.event = event
         self.n = 0
 
     def __call__(self, event, duration, **kwargs):
-        if event == "/jax/core/compile/jaxpr_trace_duration":
+        if event == self.event:
             self.n += 1
 
     def __enter__(self):

@@ -128,7 +128,7 @@ def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray],
     fit's own log-reflectance solve was compiled with; folds capped at no more steps run under it, capped by the
     solver (`BandLevenbergMarquardt.cap`), and reuse its compiled program (one compilation fewer per fit)."""
     solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol, cap=steps)
-    bound = bound if steps <= bound else steps
+    bound = max(bound, steps)
 
     def one(test):
         test = np.asarray(test)

@@ -5,15 +5,16 @@ folder of its own for JAX's compiled programs (one worker runs one test at a tim
 it at once); it is removed when the process's test session ends. Tests that time a first run (the demo's)
 or state what a cold start costs (the notebooks) pass their own `DIFFWASH_CACHE_DIR`.
 
-The test process itself keeps JAX's persistent cache off, also for the commands it runs in-process
-(`diffwash.cli.main`): twice a pytest-xdist worker that had run several hundred tests died of a
-segmentation fault inside JAX 0.10.2's cache writer (`compilation_cache.put_executable_and_time`, serialising
-a mixture fit's program), in two CI runs; neither run of the same tests alone, nor 12 fresh processes of the
-same fit, reproduced it. Within one process JAX's in-memory caches already find every program compiled.
-Later such deaths (inside XLA's compiler, in the same late test of three CI runs in a row) had one cause:
-the worker's memory maps (XLA's CPU backend maps each compiled program's code in regions of its own; a
-process may hold 65530). Five mixture test modules alone left 36,000; `_relieve_compiled_programs` keeps
-them under half.
+The test processes themselves (the controller and every xdist worker of one run) share another folder for the
+programs they compile in float64 (those that took 0.2 s or more): a fit one worker compiled is read, not
+compiled again, by the other, and programs dropped by `_relieve_compiled_programs` come back from disk. The
+whole suite's tests took 3,312 s of the two workers' time with it, against 3,555 s without (a run of the day
+before); the mixture modules gain most. JAX writes a cache entry in place, so two processes on one folder need
+its lock: a size bound turns on JAX's `filelock`-based locking of every read and write (a torn entry would
+otherwise be read as corrupt). Twice, in CI runs under JAX 0.10.2, a worker that had run several hundred tests
+died of a segmentation fault in the cache writer, before the one cause of such late deaths was found: the
+worker's memory maps (XLA's CPU backend maps each compiled program's code in regions of its own; a process may
+hold 65530). Five mixture test modules alone left 36,000; `_relieve_compiled_programs` keeps them under half.
 """
 
 import os
@@ -28,13 +29,23 @@ _OWN = "DIFFWASH_TESTS_OWN_CACHE"
 if os.environ.get("DIFFWASH_CACHE_DIR", os.environ.get(_OWN)) == os.environ.get(_OWN):
     os.environ["DIFFWASH_CACHE_DIR"] = os.environ[_OWN] = tempfile.mkdtemp(prefix="diffwash-tests-jax-")
 
+# One folder for the test processes' own programs, made by the first (the controller) and inherited by the workers.
+_SHARED = "DIFFWASH_TESTS_SHARED_CACHE"
+_MADE_SHARED = not os.environ.get(_SHARED)  # the process that makes the folder removes it
+if _MADE_SHARED:
+    os.environ[_SHARED] = tempfile.mkdtemp(prefix="diffwash-tests-xla-")
+
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_compilation_cache_dir", os.environ[_SHARED])
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+jax.config.update("jax_compilation_cache_max_size", 8 << 30)  # a bound turns on the cross-process lock
 
 import diffwash._cache  # noqa: E402
 
-diffwash._cache.enable_compilation_cache = lambda: None  # what `diffwash.enable_compilation_cache` resolves to
+diffwash._cache.enable_compilation_cache = lambda: None  # in-process commands keep the folder above
 
 import hypothesis  # noqa: E402
 import pytest  # noqa: E402
@@ -44,9 +55,12 @@ hypothesis.settings.load_profile("diffwash")
 
 
 def pytest_unconfigure(config):
-    """Remove this process's compilation cache, if this file made it (every xdist worker and the controller)."""
+    """Remove this process's compilation cache for commands, if this file made it (every xdist worker and the
+    controller), and the test processes' shared one in the process that made it (the controller)."""
     if os.environ.get("DIFFWASH_CACHE_DIR") == os.environ.get(_OWN):
         shutil.rmtree(os.environ[_OWN], ignore_errors=True)
+    if _MADE_SHARED:
+        shutil.rmtree(os.environ[_SHARED], ignore_errors=True)
 
 
 ROOT = Path(__file__).resolve().parent.parent

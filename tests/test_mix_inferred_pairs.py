@@ -1,6 +1,6 @@
-"""Pair terms inferred for pairs never measured mixed (diffwash.fit.tables._pairs.infer_pair_terms): the sum of
-per-pigment effects fitted to the measured pairs' terms, marked in the library file, used by the fit's
-leave-pairs-out folds that calibrate the unseen pairs' 90% regions."""
+"""Pair terms inferred for pairs never measured mixed (diffwash.fit.tables._pairs.infer_pair_terms): per-pigment
+effects fitted to the measured pairs' terms, and what pairs of like paints did, marked in the library file, used by
+the fit's leave-pairs-out folds that calibrate the unseen pairs' 90% regions."""
 
 import json
 
@@ -64,6 +64,44 @@ def test_inferred_terms_stay_within_what_a_library_file_may_hold():
     out = _pairs.infer_pair_terms(_additive(effects), 5, ridge=1e-9)
     assert float(jnp.max(out.k_bumps[-1])) == _schema.PAIR_BUMP_MAX
     assert float(jnp.max(out.s_amount[-1])) == _schema.PAIR_AMOUNT_MAX
+
+
+def _theta(terms, q=-1):
+    return np.concatenate([terms.k_bumps[q], terms.s_bumps[q], [terms.k_amount[q], terms.s_amount[q]]])
+
+
+def _two_kinds(seed=0):
+    """Six pigments of two kinds (three absorb short waves, three long: K (6, 8), S), and every pair's terms but
+    (0, 3)'s: `TRUE` for a pair of the two kinds, `-TRUE` for two of a kind. No per-pigment effects add to that."""
+    kind = np.array([0, 0, 0, 1, 1, 1])
+    shape = np.stack([np.linspace(2, -2, 8), np.linspace(-2, 2, 8)])
+    K = np.exp(shape[kind] + np.random.default_rng(seed).normal(0, 0.1, (6, 8)))
+    pairs = tuple((i, j) for i in range(6) for j in range(i + 1, 6) if (i, j) != (0, 3))
+    theta = np.stack([np.asarray(TRUE) * (1.0 if kind[i] != kind[j] else -1.0) for i, j in pairs])
+    return (K, np.ones_like(K)), _terms(theta, pairs)
+
+
+def test_a_pair_of_like_paints_takes_what_like_pairs_did():
+    pigments, terms = _two_kinds()
+    true = np.asarray(TRUE)
+    like = _pairs.infer_pair_terms(terms, 6, ridge=1e-3, pigments=pigments)
+    effects_only = _pairs.infer_pair_terms(terms, 6, ridge=1e-3)
+    assert like.inferred == effects_only.inferred == ((0, 3),)
+    np.testing.assert_allclose(_theta(like), true, atol=1e-3)
+    assert _theta(effects_only) @ true < 0  # the effects alone get it wrong: two of a kind pull the other way
+    # With the default ridge, shrunk towards Duncan but pointing the right way.
+    got = _theta(_pairs.infer_pair_terms(terms, 6, pigments=pigments))
+    assert 0.5 < got @ true / (true @ true) < 1.0
+
+
+def test_without_likeness_the_inference_is_the_effects_ridge_regression():
+    pigments, terms = _two_kinds(1)
+    a = _pairs.infer_pair_terms(terms, 6, pigments=pigments, like=0.0)
+    b = _pairs.infer_pair_terms(terms, 6)
+    np.testing.assert_allclose(_theta(a), _theta(b), atol=1e-12)
+    # Pigments all alike (no distance to scale by) are alike, not NaN.
+    same = (np.ones((6, 8)), np.ones((6, 8)))
+    assert np.isfinite(_theta(_pairs.infer_pair_terms(terms, 6, pigments=same))).all()
 
 
 def test_a_library_file_marks_inferred_pairs_and_reads_them_back(tmp_path):
@@ -148,6 +186,11 @@ def test_a_fit_infers_the_pair_it_never_measured_and_its_folds_predict_as_it_doe
     got = lib.predict(*q)
     assert np.isfinite(got.lab).all() and np.isfinite(got.de2000_90).all()
     assert np.abs(got.lab - duncan.predict(*q).lab).max() > 1e-3  # the inferred terms act on the pair
+    # ... and are those of the measured pairs and the fitted pigments' likeness.
+    pal = lib.palette
+    again = _pairs.infer_pair_terms(_drop_inferred(pal.pairs), len(names), pigments=(pal.K, pal.S))
+    np.testing.assert_allclose(_theta(again), _theta(pal.pairs), atol=1e-6)
+    assert np.abs(_theta(_pairs.infer_pair_terms(_drop_inferred(pal.pairs), len(names))) - _theta(again)).max() > 1e-4
 
 
 def test_an_rgb_table_gets_pair_terms_and_infers_the_pair_it_never_measured(tmp_path, monkeypatch, capsys):

@@ -103,8 +103,8 @@ class MixModel:
     - `pair_ridge`: their ridge towards Duncan (CIEDE2000 units per unit parameter; None: `_pairs.PAIR_RIDGE` for
       spectral tables, `RGB_PAIR_RIDGE` for RGB tables; a fit's `model` holds the value it used).
     - `infer_pairs`: with `pairs`, a pair never measured mixed whose pigments were each measured mixed with others
-      takes terms inferred from those pigments' effects in their measured pairs (`_pairs.infer_pair_terms`);
-      off: such pairs keep Duncan's law.
+      takes terms inferred from the measured pairs: its pigments' effects in them and what pairs of like paints
+      did (`_pairs.infer_pair_terms`); off: such pairs keep Duncan's law.
     - `scatter_spread`, `gamma_spread`: the table's population priors (`diffwash.fit.tables._priors`): how far a
       pigment's log S (per band) and log amount-law exponent may stray from the table's mean (0: no prior).
     - `one_amount`: hold what the rows leave free (`diffwash.fit.tables._priors.TablePriors`): the amount law of a
@@ -132,7 +132,8 @@ class MixModel:
         return {"gamma": self.gamma, "weights": self.weights, "surface": self.surface, "prior": self.prior,
                 "own": self.own, "loss": self.loss, "ridge": self.ridge, "refine_spacing": self.refine_spacing,
                 "pairs": self.pairs, "pair_ridge": self.pair_ridge, "infer_pairs": self.infer_pairs,
-                "effect_ridge": _pairs.EFFECT_RIDGE, "scatter_spread": self.scatter_spread,
+                "effect_ridge": _pairs.EFFECT_RIDGE, "like_weight": _pairs.LIKE_WEIGHT,
+                "like_scale": _pairs.LIKE_SCALE, "scatter_spread": self.scatter_spread,
                 "gamma_spread": self.gamma_spread, "one_amount": self.one_amount}  # fmt: skip
 
 
@@ -630,7 +631,8 @@ def fit_mixtures(
             held_seen = np.full(len(m), np.nan)
             held_seen[one] = _pairs.held_out_de2000(palette, A1, G1, lab1, obs.lab, k2, ridge=model.pair_ridge)
         if model.infer_pairs and terms is not None:
-            palette = eqx.tree_at(lambda p: p.pairs, palette, _pairs.infer_pair_terms(terms, len(names)))
+            inferred = _pairs.infer_pair_terms(terms, len(names), pigments=(palette.K, palette.S))
+            palette = eqx.tree_at(lambda p: p.pairs, palette, inferred)
     # the folds infer their held-out pairs' terms where the fit inferred terms (`_fold_lab_with_pairs`)
     fold_rows = one_layer if model.infer_pairs and palette.pairs is not None else None
     ok = all(bool(c) for c in stages)
@@ -725,7 +727,8 @@ def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, grounds: 
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
     terms, _ = _pairs.fit_pair_terms(palette, rows.A1, rows.G1, rows.lab1, obs.lab, k2, ridge=model.pair_ridge,
                                      use=~np.asarray(test)[rows.one])  # fmt: skip
-    palette = eqx.tree_at(lambda p: p.pairs, palette, _pairs.infer_pair_terms(terms, P), is_leaf=lambda x: x is None)
+    inferred = _pairs.infer_pair_terms(terms, P, pigments=(palette.K, palette.S))
+    palette = eqx.tree_at(lambda p: p.pairs, palette, inferred, is_leaf=lambda x: x is None)
     held = m.select(np.asarray(test))
     lib = Library(palette=palette, grounds=dict(grounds), observation=obs, k2=float(k2))
     return np.asarray(lib.predict(held.pigments, held.amounts, held.ground).lab, np.float64)

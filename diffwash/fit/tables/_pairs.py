@@ -16,10 +16,11 @@ docs/mixing.md measures the terms on rows of measured pairs held out of the
 fit, and chose the ridge and the number of bumps on a different split.
 
 A pair never measured mixed, whose two pigments were each measured mixed with
-others, takes terms inferred from those pigments' effects in their measured
-pairs (`infer_pair_terms`): part of what a pair does beyond Duncan is its
-pigments' own (a paint that flocculates or dilutes another's scattering does
-so in most of its mixtures).
+others, takes terms inferred from the measured pairs (`infer_pair_terms`): part
+of what a pair does beyond Duncan is its pigments' own (a paint that flocculates
+or dilutes another's scattering does so in most of its mixtures), and part is
+shared by pairs of like paints (a blue with a yellow does what another blue with
+another yellow did).
 """
 
 from __future__ import annotations
@@ -36,8 +37,8 @@ from ... import colorimetry, mixing
 from ..._schema import PAIR_AMOUNT_MAX, PAIR_BUMP_MAX
 from .._bandlsq import GN_TOL, Convergence, loss_floor, newton_decrement
 
-__all__ = ["fit_pair_terms", "held_out_de2000", "infer_pair_terms", "EFFECT_RIDGE", "PAIR_BUMPS", "PAIR_RIDGE",
-           "PAIR_STEPS"]
+__all__ = ["fit_pair_terms", "held_out_de2000", "infer_pair_terms", "EFFECT_RIDGE", "LIKE_SCALE", "LIKE_WEIGHT",
+           "PAIR_BUMPS", "PAIR_RIDGE", "PAIR_STEPS"]
 
 #: Gaussian bumps per spectral scale (over the palette's band grid).
 PAIR_BUMPS = 4
@@ -48,6 +49,12 @@ PAIR_STEPS = 40
 #: The ridge of the per-pigment effects that unmeasured pairs' terms are inferred from (`infer_pair_terms`), in
 #: measured pairs: a pigment measured in that many pairs has its effect shrunk by half towards 0 (Duncan).
 EFFECT_RIDGE = 10.0
+#: The weight of the likeness of pairs (`infer_pair_terms`: pairs of like paints have like terms), against 1 for the
+#: pigments' own effects.
+LIKE_WEIGHT = 10.0
+#: How far apart two paints may be and still be alike (`infer_pair_terms`), as a share of the median distance between
+#: the table's paints (their standardised log K/S spectra).
+LIKE_SCALE = 0.7
 
 
 def measured_pairs(A: np.ndarray) -> list[tuple[int, int]]:
@@ -266,17 +273,47 @@ def held_out_de2000(
     return out
 
 
-def infer_pair_terms(terms: mixing.PairTerms | None, P: int, ridge: float = EFFECT_RIDGE) -> mixing.PairTerms | None:
-    r"""`terms` (fitted to measured pairs of `P` pigments) and, for every pair never measured mixed whose two
-    pigments were each measured mixed with others, terms inferred from those pigments' effects (`inferred`).
+def _likeness(pigments, mixed: list[int], scale: float) -> np.ndarray:
+    """How alike the `mixed` pigments are (M, M), 1 on the diagonal: a Gaussian of the distance between their log K/S
+    spectra, each band standardised over those pigments, at `scale` times the median distance between them."""
+    K, S = (np.asarray(x, np.float64)[mixed] for x in pigments)
+    tiny = np.finfo(np.float64).tiny
+    f = np.log(np.maximum(K, tiny)) - np.log(np.maximum(S, tiny))
+    f = (f - f.mean(axis=0)) / (f.std(axis=0) + 1e-9)
+    d = np.sqrt(np.sum((f[:, None] - f[None]) ** 2, axis=-1))
+    off = d[np.triu_indices(len(mixed), 1)]
+    median = float(np.median(off)) if off.size else 0.0
+    return np.exp(-0.5 * (d / (scale * median)) ** 2) if median > 0 else np.ones_like(d)
 
-    A measured pair's $2n + 2$ numbers are read as one effect per pigment plus the pair's own part,
-    $\theta_{ij} = e_i + e_j + \epsilon_{ij}$. The effects are the ridge regression of the measured pairs' terms on
-    their pigments, $E = (X^\top X + \lambda I)^{-1} X^\top \Theta$ ($X$ the (Q, P) incidence of pairs and
-    pigments, $\lambda$ = `ridge`), shrunk towards 0: Duncan's law, where few measured pairs say little of a
-    pigment. A pair never measured takes $e_i + e_j$, within the terms' declared bounds. A pigment never measured
-    mixed has no effect to infer from, and its pairs no terms (their rows are `unmixed`, `diffwash._regions.kinds`).
-    docs/mixing.md measures the inferred terms on pairs held out of the fit.
+
+def infer_pair_terms(
+    terms: mixing.PairTerms | None,
+    P: int,
+    ridge: float = EFFECT_RIDGE,
+    *,
+    pigments: tuple[np.ndarray, np.ndarray] | None = None,
+    like: float = LIKE_WEIGHT,
+    scale: float = LIKE_SCALE,
+) -> mixing.PairTerms | None:
+    r"""`terms` (fitted to measured pairs of `P` pigments) and, for every pair never measured mixed whose two
+    pigments were each measured mixed with others, terms inferred from the measured pairs (`inferred`).
+
+    A measured pair's $2n + 2$ numbers are read as one effect per pigment, plus a part that like pairs share, plus
+    the pair's own: a Gaussian process over pairs whose covariance is
+
+    $$ k\big((i, j), (k, l)\big) = \delta_{ik} + \delta_{il} + \delta_{jk} + \delta_{jl}
+       + w\,(\kappa_{ik}\kappa_{jl} + \kappa_{il}\kappa_{jk}) , $$
+
+    with the pairs' own parts as its noise (variance $\lambda$ = `ridge`), and the mean $0$: Duncan's law. The first
+    sum alone is the ridge regression of the measured terms on their pigments, $e_i + e_j$ with the effects
+    $E = (X^\top X + \lambda I)^{-1} X^\top \Theta$ ($X$ the incidence of pairs and pigments): shrunk towards 0
+    where few measured pairs say little of a pigment. The second says that a pair of paints like another pair's
+    paints does what that pair did: $\kappa$ (`_likeness`, from `pigments` = (K, S), each (P, B)) is how alike two
+    paints' absorption spectra are, $w$ = `like`, `scale` its width. Without `pigments` only the effects count.
+    A pair never measured takes the process's mean there, $k_*^\top (K + \lambda I)^{-1} \Theta$, within the
+    terms' declared bounds. A pigment never measured mixed has nothing to infer from, and its pairs no terms
+    (their rows are `unmixed`, `diffwash._regions.kinds`). docs/mixing.md measures the inferred terms on pairs
+    held out of the fit, and how the constants were chosen.
     """
     if terms is None or not terms.members:
         return terms
@@ -291,12 +328,20 @@ def infer_pair_terms(terms: mixing.PairTerms | None, P: int, ridge: float = EFFE
     theta = np.concatenate([np.asarray(terms.k_bumps, np.float64)[q], np.asarray(terms.s_bumps, np.float64)[q],
                             np.asarray(terms.k_amount, np.float64)[q, None],
                             np.asarray(terms.s_amount, np.float64)[q, None]], axis=1)  # fmt: skip
-    X = np.zeros((len(measured), P))
-    X[np.arange(len(measured))[:, None], np.asarray(measured)] = 1.0
-    effects = np.linalg.solve(X.T @ X + ridge * np.eye(P), X.T @ theta)
+    at = {p: k for k, p in enumerate(mixed)}  # pigment -> its row among the mixed
+    M, N = np.asarray([[at[i] for i in p] for p in measured]), np.asarray([[at[i] for i in p] for p in new])
+    eye = np.eye(len(mixed))
+    kappa = _likeness(pigments, mixed, scale) if pigments is not None else np.zeros_like(eye)
+
+    def cov(a, b):  # the covariance (len(a), len(b)) of the terms of pairs a and b (rows of pigment indices)
+        (i, j), (k, l) = (a[:, None, 0], a[:, None, 1]), (b[None, :, 0], b[None, :, 1])
+        shared = eye[i, k] + eye[i, l] + eye[j, k] + eye[j, l]
+        return shared + like * (kappa[i, k] * kappa[j, l] + kappa[i, l] * kappa[j, k])
+
+    mean = cov(N, M) @ np.linalg.solve(cov(M, M) + ridge * np.eye(len(measured)), theta)
     n = theta.shape[1] // 2 - 1
     bound = np.asarray([PAIR_BUMP_MAX] * (2 * n) + [PAIR_AMOUNT_MAX] * 2)
-    inferred = np.clip(effects[[i for i, _ in new]] + effects[[j for _, j in new]], -bound, bound)
+    inferred = np.clip(mean, -bound, bound)
     full = np.concatenate([theta, inferred]).astype(np.asarray(terms.k_bumps).dtype)
     return _terms(jnp.asarray(full), tuple(measured) + tuple(new), n, terms.centres, terms.width, terms.wavelengths,
                   inferred=tuple(new))

@@ -117,7 +117,7 @@ def _held_by_regions(lib, m: measurements.Measurements) -> float:
     """Share of a table's rows whose measured colour lies within the prediction's `de2000_90` (NaN: none)."""
     from diffwash.fit.tables._mixfit import measured_lab
 
-    pred = lib.predict(m.pigments, m.amounts, m.ground)
+    pred = lib.predict(m)
     if pred.de2000_90 is None:
         return float("nan")
     lab_p = pred.lab if m.spectral else np.asarray(colorimetry.linear_srgb_to_lab(pred.linear_srgb))

@@ -731,7 +731,7 @@ def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, grounds: 
     palette = eqx.tree_at(lambda p: p.pairs, palette, inferred, is_leaf=lambda x: x is None)
     held = m.select(np.asarray(test))
     lib = Library(palette=palette, grounds=dict(grounds), observation=obs, k2=float(k2))
-    return np.asarray(lib.predict(held.pigments, held.amounts, held.ground).lab, np.float64)
+    return np.asarray(lib.predict(held).lab, np.float64)  # its rows with their layers
 
 
 def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: float, obs, lib: Library, rows,
@@ -743,7 +743,7 @@ def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: 
     F, diag, _ = laplace
     P, B = len(names), int(np.asarray(palette.K).shape[1])
     lab_m = measured_lab(m, obs)
-    pred = lib.predict(m.pigments, m.amounts, m.ground)
+    pred = lib.predict(m)  # the rows with their layers: a stack is not a mixture
     kind = np.array(_regions.kinds(m.pigments, pairs(m)))
     An, Gn = rows
     owner = _posterior.owners(P, B)

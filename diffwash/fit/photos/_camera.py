@@ -23,6 +23,18 @@ references (each reference predicted by the model fitted to the others,
 CIEDE2000 to its known colour); the best is used, fitted to all references,
 and its leave-one-out mean CIEDE2000 is the calibration's accuracy.
 
+The references support a candidate when they determine it. A colour matrix
+needs colours that span the three dimensions of colour space: the
+references' known linear colours, and the photo's values of them through the
+candidate's curve, must each have a condition number (each channel scaled to
+unit RMS) of at most `MAX_SPAN_CONDITION`. Neutral greys alone only fix a
+tone curve, and leave-one-out cannot see it (a grey predicted from the other
+greys is right whatever the matrix does to a colour); nor can it see
+duplicates (a reference left out is predicted by its twin). Each
+leave-one-out fold must also determine the candidate's terms (a condition
+number of at most `MAX_TERMS_CONDITION`), or it cannot be scored. References
+that support no candidate are refused, naming `references`.
+
 **References:**
 
 - V. Cheung, S. Westland, D. Connah, C. Ripamonti, "A comparative study of the
@@ -64,6 +76,16 @@ CAMERA_CURVE = (1.60, 0.167)
 CAMERA_CURVE_ACCURACY = 2.0
 _DEGREE = 5
 _SOFT = 0.02  # the floor of the relative weights (a channel's value below it weighs as at it)
+#: The largest condition number of the references' linear colours (n, 3), each channel scaled to unit RMS, known and
+#: as the photo shows them, for a colour matrix: a chart's or a few paints' colours give 4-15 (the ColorChecker's 24
+#: patches 4.4; 4 of them, one in six, 11), greys tinted by up to 10 in a* and b* about 30, by up to 5 about 100, the
+#: ColorChecker's 6 greys 700, and greys or a repeated colour alone have no third dimension at all.
+MAX_SPAN_CONDITION = 50.0
+#: The largest condition number of a candidate's terms (each scaled to unit RMS) in a leave-one-out fold: above it
+#: the fold does not determine the candidate's matrix and its prediction of the reference left out means nothing.
+MAX_TERMS_CONDITION = 1e6
+#: Below this chroma (C*ab) every reference is called near-neutral when they span too few colours.
+_NEUTRAL_CHROMA = 10.0
 
 
 def _expand(rgb: np.ndarray, correction: str) -> np.ndarray:
@@ -252,7 +274,7 @@ class CameraModel:
     """A fitted camera model: `curve` (encoded -> linear signal), `correction` and its `matrix` (terms, 3).
 
     **Fields:** `accuracy` (the leave-one-out mean CIEDE2000 over the references), `references` (how many),
-    `scores` (each candidate's leave-one-out mean CIEDE2000), `residuals` (each reference's leave-one-out
+    `scores` (each supported candidate's leave-one-out mean CIEDE2000), `residuals` (each reference's leave-one-out
     CIEDE2000 with the chosen model).
     """
 
@@ -297,48 +319,117 @@ def _curve(kind: str, e: np.ndarray, light: np.ndarray, target: np.ndarray) -> T
     return _fit_curve(e, light, target)[0] if kind == "fitted" else ToneCurve(kind)
 
 
-def _fit_one(kind: str, correction: str, e: np.ndarray, light: np.ndarray, target: np.ndarray
-             ) -> tuple[ToneCurve, np.ndarray]:  # fmt: skip
-    curve = _curve(kind, e, light, target)
-    return curve, _solve_matrix(_expand(curve(e) / light[:, None], correction), target)
+def _curve_kinds(raw: bool) -> tuple[str, ...]:
+    return ("linear",) if raw else ("srgb", "camera", "fitted")
 
 
 def _candidates(n: int, raw: bool) -> list[tuple[str, str]]:
-    curves = ("linear",) if raw else ("srgb", "camera", "fitted")
-    return [(c, m) for c in curves for m in CORRECTIONS if n >= _needs(c, m)]
+    return [(c, m) for c in _curve_kinds(raw) for m in CORRECTIONS if n >= _needs(c, m)]
 
 
-def fit_camera(encoded: Any, light: Any, lab: Any, *, raw: bool = False) -> CameraModel:
+def _condition(X: np.ndarray) -> float:
+    """The condition number of `X` (n, k) with each column scaled to unit RMS; inf where it is rank deficient."""
+    X = np.asarray(X, np.float64)
+    if X.shape[0] < X.shape[1] or not np.all(np.isfinite(X)):
+        return float("inf")
+    top = np.max(np.abs(X), axis=0)
+    if np.any(top <= 0):
+        return float("inf")
+    Y = X / top  # in [-1, 1] first: the RMS cannot overflow
+    s = np.linalg.svd(Y / np.sqrt(np.mean(Y * Y, axis=0)), compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
+def _distinct(lab: np.ndarray, tol: float = 1.0) -> int:
+    """How many of the colours `lab` (n, 3) differ by more than `tol` (CIE 1976) from every earlier one."""
+    kept: list[np.ndarray] = []
+    for c in lab:
+        if all(np.linalg.norm(c - k) > tol for k in kept):
+            kept.append(c)
+    return len(kept)
+
+
+def _too_few_colours(lab: np.ndarray) -> str:
+    """Why references of known colour `lab` (n, 3) do not span colour space, in words."""
+    n, k = len(lab), _distinct(lab)
+    if np.max(np.hypot(lab[:, 1], lab[:, 2])) < _NEUTRAL_CHROMA:
+        why = "they are all near-neutral"
+    elif k < 3:
+        why = f"they are only {k} distinct colour{'s' if k != 1 else ''}"
+    else:
+        why = "their colours lie close to one plane of colour space"
+    return (f"the {n} references span too few colours for a colour matrix ({why}): add coloured references, or "
+            f"leave them out to calibrate from the paper")  # fmt: skip
+
+
+def _unsupported(msg: str, file: Any) -> DiffwashError:
+    return DiffwashError(msg, file=file, field="references")
+
+
+def _shown_curves(kinds: set[str], e: np.ndarray, light: np.ndarray, target: np.ndarray) -> dict[str, ToneCurve]:
+    """Each curve kind fitted to all references, where the photo's values of them through it span colour space."""
+    curves = {kind: _curve(kind, e, light, target) for kind in sorted(kinds)}
+    return {k: c for k, c in curves.items() if _condition(c(e) / light[:, None]) <= MAX_SPAN_CONDITION}
+
+
+def _leave_one_out(kind: str, corr: str, e: np.ndarray, light: np.ndarray, target: np.ndarray,
+                   curves: dict[tuple[str, int], ToneCurve]) -> np.ndarray | None:  # fmt: skip
+    """Each reference predicted by the candidate fitted to the others, (n, 3); None where a fold does not
+    determine the candidate's terms (`MAX_TERMS_CONDITION`). `curves` caches each fold's curve."""
+    n = len(e)
+    pred = np.empty((n, 3))
+    for i in range(n):
+        keep = np.arange(n) != i
+        if (kind, i) not in curves:
+            curves[kind, i] = _curve(kind, e[keep], light[keep], target[keep])
+        curve = curves[kind, i]
+        F = _expand(curve(e[keep]) / light[keep, None], corr)
+        if _condition(F) > MAX_TERMS_CONDITION:
+            return None
+        pred[i] = _expand(curve(e[i : i + 1]) / light[i], corr) @ _solve_matrix(F, target[keep])
+    return pred
+
+
+def fit_camera(encoded: Any, light: Any, lab: Any, *, raw: bool = False, file: Any = None) -> CameraModel:
     """Fit the camera model to references (module docstring), choosing it by leave-one-out.
 
     **Arguments:** `encoded` (n, 3): each reference's mean encoded value in [0, 1] (linear for a raw photo);
     `light` (n,): the relative light at each; `lab` (n, 3): their known CIELAB (D65); `raw`: the values are
-    linear already (the curve is the identity).
+    linear already (the curve is the identity); `file`: the layout, named by errors.
 
     **Returns:** the `CameraModel`. Needs at least `needed_references()` references (the caller checks).
+    References that support no candidate (module docstring) raise a `DiffwashError` naming `references`.
     """
     e = np.asarray(encoded, np.float64)
     light = np.asarray(light, np.float64)
     lab = np.asarray(lab, np.float64)
     target = lab_to_linear(lab)
     n = len(e)
+    if _condition(target) > MAX_SPAN_CONDITION:
+        raise _unsupported(_too_few_colours(lab), file)
+    candidates = _candidates(n, raw)
+    full = _shown_curves({kind for kind, _ in candidates}, e, light, target)
+    if not full:
+        raise _unsupported(f"the photo shows the {n} references as too few colours for a colour matrix (as it "
+                           f"reads them, their colours lie close to one plane of colour space): check that their "
+                           f"boxes are on the patches of known colour, or add more strongly coloured references",
+                           file)  # fmt: skip
     scores, loo = {}, {}
     curves: dict[tuple[str, int], ToneCurve] = {}  # the curve of each fold, shared by the corrections
-    for kind, corr in _candidates(n, raw):
-        pred = np.empty((n, 3))
-        for i in range(n):
-            keep = np.arange(n) != i
-            if (kind, i) not in curves:
-                curves[kind, i] = _curve(kind, e[keep], light[keep], target[keep])
-            curve = curves[kind, i]
-            M = _solve_matrix(_expand(curve(e[keep]) / light[keep, None], corr), target[keep])
-            pred[i] = _expand(curve(e[i : i + 1]) / light[i], corr) @ M
-        de = _de(pred, lab)
-        key = f"{_CURVE_NAMES[kind]} + {corr}"
-        scores[key] = float(np.mean(de)) if np.all(np.isfinite(de)) else float("inf")
-        loo[(kind, corr)] = (scores[key], de)
+    for kind, corr in candidates:
+        pred = _leave_one_out(kind, corr, e, light, target, curves) if kind in full else None
+        de = None if pred is None else _de(pred, lab)
+        if de is None or not np.all(np.isfinite(de)):
+            continue  # the references do not support it: it cannot be scored
+        scores[f"{_CURVE_NAMES[kind]} + {corr}"] = float(np.mean(de))
+        loo[(kind, corr)] = (float(np.mean(de)), de)
+    if not loo:
+        raise _unsupported(f"with any one of the {n} references left out, the others do not determine a colour "
+                           f"matrix, so its accuracy cannot be scored: add references of other colours",
+                           file)  # fmt: skip
     (kind, corr), (best, de) = min(loo.items(), key=lambda kv: kv[1][0])
-    curve, M = _fit_one(kind, corr, e, light, target)
+    curve = full[kind]
+    M = _solve_matrix(_expand(curve(e) / light[:, None], corr), target)
     return CameraModel(curve=curve, correction=corr, matrix=M, accuracy=best, references=n, scores=scores,
                        residuals=de)  # fmt: skip
 

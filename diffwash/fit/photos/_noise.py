@@ -224,6 +224,20 @@ class PixelNoise:
     floor: np.ndarray
 
 
+def _row_norms(a: np.ndarray) -> np.ndarray:
+    """The Euclidean norm of each row of `a`, scaled by its largest entry first (no overflow for finite `a`)."""
+    a = np.abs(np.asarray(a, np.float64))
+    top = np.max(a, axis=-1)
+    safe = np.where(top > 0, top, 1.0)
+    return top * np.sqrt(np.sum(np.square(a / safe[..., None]), axis=-1))
+
+
+def _coherent(s: np.ndarray) -> np.ndarray:
+    """The variance, in code values squared, of rounding a value with normal noise of `s` code values (module
+    docstring): 1/12 without noise, $e^{-2\\pi^2 s^2}/12$ with it; 0 to double precision beyond 10 code values."""
+    return np.exp(-2 * (np.pi * np.minimum(np.abs(s), 10.0)) ** 2) / 12
+
+
 def trimmed_mean(v: np.ndarray, trim: float = 0.2) -> np.ndarray:
     """Mean of the middle (1 - 2 trim) of the values along axis 0, per column."""
     v = np.sort(v, axis=0)
@@ -291,16 +305,16 @@ def pixel_noise(values: np.ndarray, display: np.ndarray, scale: np.ndarray, bits
     d_mean = display.reshape(-1, 3).mean(axis=0)
     top = 255 if jpeg is not None else (1 << bits) - 1
     J = _srgb_slope(d_mean) / top * scale  # values per code value
-    sd_codes = spread / np.maximum(J, 1e-300)
-    coherent = lambda s: np.exp(-2 * (np.pi * s) ** 2) / 12  # noqa: E731
+    # The pixels' spread in code values, at most 1e6 (beyond 10 the rounding averages out): finite whatever `scale`.
+    sd_codes = spread / np.maximum(np.abs(J), np.maximum(spread, 1e-300) * 1e-6)
     if jpeg is not None:
         steps = np.array([jpeg.luma, jpeg.chroma, jpeg.chroma])
-        sd_ycc = np.sqrt((RGB_TO_YCC**2) @ sd_codes**2)
-        codes = YCC_TO_RGB @ np.diag(steps**2 / 12 + coherent(sd_ycc)) @ YCC_TO_RGB.T + np.eye(3) / 12
+        sd_ycc = _row_norms(RGB_TO_YCC * sd_codes)  # sqrt((RGB_TO_YCC**2) @ sd_codes**2), without overflow
+        codes = YCC_TO_RGB @ np.diag(steps**2 / 12 + _coherent(sd_ycc)) @ YCC_TO_RGB.T + np.eye(3) / 12
         if reference:
             codes = np.eye(3) * (1 + steps.max() / 2) ** 2 / 3
     else:
-        codes = np.diag(coherent(sd_codes))
+        codes = np.diag(_coherent(sd_codes))
     cov = np.diag(J) @ codes @ np.diag(J) + np.diag(var_pixels + var_floor)
     return PixelNoise(value=value, cov=cov, spread=spread, pixels_per_sample=tau,
                       interval=np.stack([lo, hi]), floor=floor)  # fmt: skip

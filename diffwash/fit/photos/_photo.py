@@ -72,7 +72,7 @@ from ._noise import JpegSteps, _srgb_slope, pixel_noise, trimmed_mean
 
 __all__ = ["Box", "Patch", "Layout", "parse_layout", "read_layout", "patch_paints", "swatch_pigments", "Calibration",
            "calibrate", "PatchStats", "patch_stats", "inner_box", "linearise", "Reference", "calibrate_references",
-           "reference_readings", "camera_floor"]  # fmt: skip
+           "reference_readings", "camera_floor", "check_readings"]  # fmt: skip
 
 GROUNDS = ("paper", "black")
 
@@ -740,7 +740,9 @@ def calibrate_references(display: np.ndarray, bits: int, layout: Layout, cal: Ca
     `cal` is the paper's calibration (its light falloff); `extra` is `(encoded (m, 3), centres (m, 2) as
     (x, y) pixels, lab (m, 3))` of references found in the photo (a ColorChecker). The curve and the light
     are fitted twice: the light falloff again from the paper read through the first model's curve.
-    Fewer references than `needed_references()` raise a `DiffwashError` naming `references`.
+    Fewer references than `needed_references()`, references that determine no camera model
+    (`diffwash.fit.photos._camera.fit_camera`), and a model that reads the layout's boxes as no paper could be
+    (`check_readings`) raise a `DiffwashError` naming `references`.
     """
     n = len(layout.references) + (0 if extra is None else len(extra[0]))
     need = needed_references()
@@ -755,9 +757,53 @@ def calibrate_references(display: np.ndarray, bits: int, layout: Layout, cal: Ca
             e2, centres, lab2 = extra
             l2 = cal.light(np.asarray(centres)[:, 1], np.asarray(centres)[:, 0])
             enc, light, lab = np.concatenate([enc, e2]), np.concatenate([light, l2]), np.concatenate([lab, lab2])
-        model = fit_camera(enc, light, lab, raw=raw)
+        model = fit_camera(enc, light, lab, raw=raw, file=file)
+        check_readings(model, display, cal, layout, file)
         if k == 0:  # the light falloff again, from the paper read through the fitted curve
             base = calibrate(model.signal(display), display, bits, layout, file=file, degree=cal.degree)
             cal = replace(base, notes=cal.notes)
     assert model is not None
     return replace(cal, camera=model, raw=raw, gain=1 / model.gain())
+
+
+#: The least reflectance a camera model may read the paper box as, in every channel (white or cream paper reads
+#: 0.6-0.95; a model that reads it darker than this is wrong, not the paper).
+LEAST_PAPER = 0.05
+#: The lowest luminance a camera model may read any box as (linear; a dark patch or the black band reads about 0.01,
+#: less its noise): below it the model reads negative light.
+LEAST_LUMINANCE = -0.05
+_LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # linear sRGB to Y (IEC 61966-2-1)
+
+
+def _shown(v: np.ndarray) -> str:
+    return "(" + ", ".join(f"{x:.3g}" for x in v) + ")"
+
+
+def _reading_problem(named: list[str], rgb: np.ndarray, gain: np.ndarray) -> str | None:
+    """What is wrong with a camera model's readings `rgb` (n, 3) of the boxes `named` (the paper box first) and
+    its `gain` near neutral, in words, or None."""
+    for name, v in zip(named, rgb):
+        if not np.all(np.isfinite(v)):
+            return f"reads {name} as {_shown(v)}, not a number"
+    if not np.all(np.isfinite(gain) & (gain > 0)):
+        return f"reads more light as less (its gain per channel near neutral is {_shown(gain)})"
+    if np.min(rgb[0]) < LEAST_PAPER:
+        return f"reads {named[0]} as {_shown(rgb[0])} in linear sRGB, darker than any paper (below {LEAST_PAPER})"
+    for name, v in zip(named, rgb):
+        if float(v @ _LUMINANCE) < LEAST_LUMINANCE:
+            return f"reads {name} as {_shown(v)} in linear sRGB, darker than black"
+    return None
+
+
+def check_readings(model: CameraModel, display: np.ndarray, cal: Calibration, layout: Layout, file: Any) -> None:
+    """Refuse a camera model that reads the paper box, the black box or a patch as not a number, more light as
+    less (its gain near neutral), the paper box as dark or any box as darker than black: a `DiffwashError` naming
+    `references`. Such a calibration is never used."""
+    named = [("the paper box", layout.paper)] + ([("the black box", layout.black)] if layout.black else [])
+    named += [(f"patches[{i}]", p.box) for i, p in enumerate(layout.patches)]
+    enc, light = reference_readings(display, cal, [box for _, box in named])
+    rgb = model.correct(model.signal(enc) / light[:, None])
+    problem = _reading_problem([name for name, _ in named], rgb, model.gain())
+    if problem is not None:
+        raise _fail(f"the camera model fitted to the {model.references} references {problem}: check the "
+                    f"references' boxes and colours", file, "references")  # fmt: skip

@@ -42,8 +42,8 @@ COMMANDS = {
     "swatch-card": "make a synthetic swatch-card photo and its layout (for fit-swatch)",
     "fit-swatch": "fit pigment K and S to a swatch-card photo or a table of measured colours",
     "fit-image": "fit scene parameters to target images",
-    "predict": "predict the colour of single paints and mixtures from a pigment library (fit-swatch --table)",
-    "suggest": "rank candidate swatches by how much measuring them would shrink the 90% regions of predictions",
+    "predict": "predict the colour of single paints, mixtures and glaze stacks from a pigment library",
+    "suggest": "rank candidate swatches by how much measuring them would shrink the 90%% regions of predictions",
     "demo": "run the whole product on bundled data",
 }
 

@@ -177,17 +177,17 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
                                            tone_curve=args.tone_curve)  # fmt: skip
     _print_cameras(fit.calibrations, args.photos)
     n = len(args.photos)
-    mixtures = sum(len(set(q.pigments)) > 1 for q in fit.patches)
-    print(f"{len(fit.names)} pigments ({', '.join(fit.names)}) from {len(fit.patches)} patches ({mixtures} mixtures) "
-          f"in {n} photo{'s' if n > 1 else ''}, fitted jointly as smooth spectra seen through sRGB")  # fmt: skip
-    width = max(len("pigment"), *(len("+".join(q.pigments)) for q in fit.patches))
-    cw = max(len("coats"), *(len("+".join(f"{a:g}" for a in q.amounts)) for q in fit.patches))
+    paints = [fit.measurements.row_text(i) for i in range(len(fit.patches))]  # `A+B` mixed, `A/B` a glaze stack
+    print(f"{len(fit.names)} pigments ({', '.join(fit.names)}) from {len(fit.patches)} patches "
+          f"({_kinds_of_patches(fit.measurements)}) in {n} photo{'s' if n > 1 else ''}, fitted jointly as smooth "
+          f"spectra seen through sRGB")  # fmt: skip
+    width = max(len("pigment"), *(len(pigment) for pigment, _ in paints))
+    cw = max(len("coats"), *(len(coats) for _, coats in paints))
     print(f"  {'pigment':<{width}}  {'coats':>{cw}}  {'ground':6}  {'observed sRGB':>15}  {'fitted sRGB':>15}  "
           f"{'CIEDE2000':>9}")  # fmt: skip
-    for q in fit.patches:
+    for q, (pigment, coats) in zip(fit.patches, paints):
         flag = "  (clipped: a bound)" if any(q.bound) else ""
-        coats = "+".join(f"{a:g}" for a in q.amounts)
-        print(f"  {'+'.join(q.pigments):<{width}}  {coats:>{cw}}  {q.ground:6}  {_srgb8(q.observed):>15}  "
+        print(f"  {pigment:<{width}}  {coats:>{cw}}  {q.ground:6}  {_srgb8(q.observed):>15}  "
               f"{_srgb8(q.fitted):>15}  {q.delta_e:9.2f}{flag}")  # fmt: skip
     status = "converged" if fit.converged else "did not converge"
     print(f"  mean CIEDE2000 {fit.mean_delta_e:.2f} (max {max(q.delta_e for q in fit.patches):.2f}); "
@@ -205,6 +205,13 @@ def _run_mixture_photos(args, out: Path, report: Path | None, t0: float) -> int:
     print(f"  a library of {len(fit.names)} mixable pigments (amounts in coats): diffwash predict {out} --table ...")
     print(f"done in {time.perf_counter() - t0:.2f} s")
     return 0
+
+
+def _kinds_of_patches(m) -> str:
+    """`N mixtures` (patches of one layer mixing pigments), and `, M glaze stacks` where there are any."""
+    stacks = int(np.sum(m.is_stack))
+    mixtures = int(np.sum(m.is_mixture & ~m.is_stack))
+    return f"{mixtures} mixtures" + (f", {stacks} glaze stacks" if stacks else "")
 
 
 def _run_table(args, out: Path, report: Path | None) -> int:

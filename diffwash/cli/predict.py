@@ -1,8 +1,12 @@
-"""Predict the colour of layers of a library's pigments, single or mixed: LIBRARY.json --table QUERIES.csv -o PRED.csv.
+"""Predict the colour of layers of a library's pigments: LIBRARY.json --table QUERIES.csv -o PRED.csv.
 
-Each query row `pigment,amount,ground` (`P1+P3,0.01+0.02,paper` for a mixture) gets its predicted `r,g,b`
-(8-bit sRGB, unclipped), `L*,a*,b*` (CIELAB, the library's illuminant and observer) and, for a spectral
-library, its reflectance on the library's bands. The Python equivalent is
+Each query row `pigment,amount,ground` -- a single paint (`P1,0.05,paper`), a mixture in one layer
+(`P1+P3,0.01+0.02,paper`) or a glaze stack, its layers joined by `/`, bottom first (`P1/P3,0.02/0.03,paper`:
+P3 brushed over dry P1) -- gets its predicted `r,g,b` (8-bit sRGB, unclipped), `L*,a*,b*` (CIELAB, the
+library's illuminant and observer), `de2000_90` where the library has a posterior (its "uncertainty"): the
+CIEDE2000 radius of the row's 90% region (empty for a kind of row the library has no model error for), and,
+for a spectral library, its reflectance on the library's bands. LIBRARY is any diffwash library (what
+fit-swatch writes from swatch-card photos or from a table) or an older pigment file. The Python equivalent is
 diffwash.library.predict(LIBRARY, QUERIES).
 """
 
@@ -19,8 +23,10 @@ USES_JAX = True
 
 
 def add_arguments(p) -> None:
-    p.add_argument("library", metavar="LIBRARY.json", help="a library written by diffwash fit-swatch --table")
-    p.add_argument("--table", required=True, metavar="CSV", help="the rows to predict: pigment,amount,ground")
+    p.add_argument("library", metavar="LIBRARY.json",
+                   help="a diffwash library (fit-swatch of swatch-card photos or of a table) or an older pigment file")
+    p.add_argument("--table", required=True, metavar="CSV",
+                   help="the rows to predict: pigment,amount,ground (A+B a mixture, A/B a glaze stack, bottom first)")
     p.add_argument("-o", "--output", required=True, metavar="CSV", help="the predictions to write")
 
 

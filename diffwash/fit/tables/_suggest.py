@@ -1,13 +1,13 @@
 r"""What to paint next: candidate swatches ranked by how much measuring them would shrink the 90% regions.
 
-A library fitted with a posterior (`diffwash fit-swatch --table` of a spectral table: the library's
-`"uncertainty"`, `diffwash._regions`) predicts each row's CIELAB with a spread: the parameters drawn from
-their posterior $\theta_d$ ($D$ = 400 draws, the fixed seed `diffwash predict` uses) pushed through the
-model, plus the model error $s_c$ of the row's kind. Stack the draws' deviations of every row (candidates
-and queries, three CIELAB components each) as the columns of $Y$ ($D \times 3N$) and write
-$A = Y/\sqrt D$, so that the rows' predictive covariance is $A^\top A$: an ensemble, i.e. the posterior
-linearised statistically over its own draws rather than at its mode (a parameter fitted at an edge, log S of
-a paint fitted to S = 0, is flat at the mode but not over the draws: `diffwash._regions.lab_draws`).
+A library fitted with a posterior (the library's `"uncertainty"`, `diffwash._regions`: what `diffwash fit-swatch`
+stores for swatch-card photos, and `--table` for a spectral table or an RGB one with mixtures) predicts each
+row's CIELAB with a spread: the parameters drawn from their posterior $\theta_d$ ($D$ = 400 draws, the fixed seed
+`diffwash predict` uses) pushed through the model, plus the model error $s_c$ of the row's kind. Stack the draws'
+deviations of every row (candidates and queries, three CIELAB components each) as the columns of $Y$
+($D \times 3N$) and write $A = Y/\sqrt D$, so that the rows' predictive covariance is $A^\top A$: an ensemble,
+i.e. the posterior linearised statistically over its own draws rather than at its mode (a parameter fitted at an
+edge, log S of a paint fitted to S = 0, is flat at the mode but not over the draws: `diffwash._regions.lab_draws`).
 
 **Measuring a candidate** $c$ (columns $a_c$, $D \times 3$) observes its colour with noise
 $R_c = (s_{k(c)}^2 + r^2)\, I_3$: the model error of its kind now ($s_{unseen}$ for a pair never measured
@@ -250,8 +250,8 @@ def suggest(
 
     **Arguments:**
 
-    - `library`: a `diffwash.library.Library` with a posterior (`"uncertainty"`: what `fit-swatch --table` of a
-      spectral table stores), or its file.
+    - `library`: a `diffwash.library.Library` with a posterior (`"uncertainty"`: what `fit-swatch` stores for
+      swatch-card photos, and `fit-swatch --table` for a spectral table or an RGB one with mixtures), or its file.
     - `candidates`: the rows one could paint and measure: a query table's path (`pigment,amount,ground`; a
       measurement table works too, its values unread), or a `diffwash.measurements.Queries`/`Measurements`.
       Single paints, mixtures (`A+B`), glaze stacks (`A/B`), on any ground of the library.
@@ -267,8 +267,10 @@ def suggest(
     where = None if isinstance(library, Library) else os.fspath(library)
     if lib.posterior is None:
         raise DiffwashError("has no posterior (\"uncertainty\"): suggest needs the one diffwash fit-swatch --table "
-                            "stores when it fits a spectral table (fitted in CIEDE2000, the default)", file=where,
-                            field="uncertainty")  # fmt: skip
+                            "stores for a spectral table (refined in CIEDE2000, the default) or an RGB table with "
+                            "mixtures or glaze stacks, or diffwash fit-swatch for swatch-card photos (noise-weighted, "
+                            "the default); an RGB table of single paints, --refine none, another --loss and older "
+                            "pigment files give none", file=where, field="uncertainty")  # fmt: skip
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise DiffwashError(f"must be a whole number >= 1, got {n!r}", field="n")
     cand = _rows(candidates, "candidate")

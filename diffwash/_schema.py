@@ -196,7 +196,8 @@ class Pigment(BaseModel):
 
     model_config = ConfigDict(extra="ignore", frozen=True)
 
-    name: Text = Field(description="unique ignoring case and spaces; no `+` (it joins a mixture's names)")
+    name: Text = Field(description="unique ignoring case and spaces; no `+` or `/` (they join a mixture's names "
+                                   "and a stack's layers)")
     K: list[Coefficient] = Field(description="absorption per unit thickness, one per band")
     S: list[Coefficient] = Field(description="scattering per unit thickness, one per band")
     amount_law: AmountLaw = Field(default_factory=AmountLaw, description="`{kind, reference, gamma}` (below)")
@@ -208,8 +209,9 @@ class Pigment(BaseModel):
     def _no_plus(cls, v: str) -> str:
         if not v.strip():
             raise ValueError("must not be blank")
-        if "+" in v:
-            raise ValueError(f"must not hold '+' (it joins the names of a mixture), got {v!r}")
+        for c, what in (("+", "the names of a mixture"), ("/", "the layers of a glaze stack")):
+            if c in v:
+                raise ValueError(f"must not hold '{c}' (it joins {what}), got {v!r}")
         return v
 
 

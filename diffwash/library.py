@@ -151,15 +151,20 @@ class Library:
         """Rows as glaze stacks: a dense `(N, L, P)` amount array, layer by layer, bottom first (`L`: the most
         layers of any row; rows of fewer layers are padded on top with empty layers, which are transparent).
 
-        `layers`: each row's pigments per layer (`Queries.layers`; None: every row one layer). A name the
-        library lacks raises a `DiffwashError` naming the file, line and column.
+        `layers`: each row's pigments per layer (`Queries.layers`; None: every row one layer). Names match
+        ignoring case and runs of spaces. A ground's name at amount 0 is no paint (a measurement table's bare
+        ground, `paper,0,paper`, is that ground). A name the library lacks raises a `DiffwashError` naming the
+        file, line and column.
         """
-        index = {n.lower(): i for i, n in enumerate(self.names)}
+        index = {_schema.name_key(n): i for i, n in enumerate(self.names)}
+        bare = {_schema.name_key(g) for g in self.grounds}
         sizes = [(len(p),) for p in pigments] if layers is None else [tuple(k) for k in layers]
         out = np.zeros((len(pigments), max((len(k) for k in sizes), default=1), len(self.names)))
         for r, (names, amts, k) in enumerate(zip(pigments, amounts, sizes)):
             for n, a, at in zip(names, amts, np.repeat(np.arange(len(k)), k)):
-                i = index.get(n.lower())
+                i = index.get(_schema.name_key(n))
+                if i is None and a == 0 and _schema.name_key(n) in bare:
+                    continue
                 if i is None:
                     where = f"line {int(lines[r])}: pigment" if lines is not None else f"row {r + 1}: pigment"
                     raise DiffwashError(f"no pigment {n!r} in the library (it has {', '.join(self.names)})",
@@ -175,8 +180,8 @@ class Library:
             v = known.get(str(g).lower())
             if v is None:
                 where = f"line {int(lines[r])}: ground" if lines is not None else f"row {r + 1}: ground"
-                raise DiffwashError(f"no ground {g!r} in the library (it has {', '.join(self.grounds)})", file=file,
-                                    field=where)  # fmt: skip
+                raise DiffwashError(f"no ground {str(g)!r} in the library (it has {', '.join(self.grounds)})",
+                                    file=file, field=where)  # fmt: skip
             rows.append(v)
         return np.asarray(rows, np.float64).reshape(len(rows), len(self.observation.bands))
 

@@ -293,7 +293,7 @@ def refuse_colliding_names(names: Any, lines: Any, path: Any) -> None:
     seen: dict[str, tuple[str, int]] = {}
     for row, line in zip(names, lines):
         for n in (row,) if isinstance(row, str) else row:
-            key = " ".join(n.casefold().split())
+            key = _schema.name_key(n)
             first = seen.setdefault(key, (n, int(line)))
             if first[0] != n:
                 raise _fail(f"{n!r} and {first[0]!r} (line {first[1]}) name the same pigment (names are compared "
@@ -475,6 +475,23 @@ def _rgb_values(vals: np.ndarray, linear: bool, path: Path, lines: np.ndarray) -
     return lin, lo, hi
 
 
+def _refuse_paints_never_laid(pigs, amts, keep, lines, path) -> None:
+    """Refuse a pigment whose every amount in the table is 0: no row shows it, and a fit would invent it."""
+    laid: dict[str, float] = {}
+    first: dict[str, int] = {}
+    for i in np.flatnonzero(keep):
+        for n, a in zip(pigs[i], amts[i]):
+            key = _schema.name_key(n)
+            laid[key] = max(laid.get(key, 0.0), a)
+            first.setdefault(key, i)
+    for key, most in laid.items():
+        if most == 0:
+            i = first[key]
+            name = pigs[i][[_schema.name_key(n) for n in pigs[i]].index(key)]
+            raise _fail(f"{name!r} is only ever at amount 0: no row shows its paint (measure it at an amount > 0, "
+                        f"or leave its rows out)", path, int(lines[i]), "amount")  # fmt: skip
+
+
 def _split_grounds(pigs, amts, gnds, vals, lo, hi, grid, path, lines, sizes) -> Measurements:
     is_ground = np.array([len(p) == 1 and p[0].lower() == g for p, g in zip(pigs, gnds)])
     grounds = {}
@@ -493,7 +510,7 @@ def _split_grounds(pigs, amts, gnds, vals, lo, hi, grid, path, lines, sizes) -> 
     keep = ~is_ground
     for i in np.flatnonzero(keep):
         if gnds[i] not in grounds:
-            raise _fail(f"no row measures the ground {gnds[i]!r} (add a row '{gnds[i]},0,{gnds[i]},...')", path,
+            raise _fail(f"no row measures the ground {str(gnds[i])!r} (add a row '{gnds[i]},0,{gnds[i]},...')", path,
                         int(lines[i]), "ground")  # fmt: skip
         bad = [n for n in pigs[i] if n.lower() in ground_names]
         if bad:
@@ -501,6 +518,7 @@ def _split_grounds(pigs, amts, gnds, vals, lo, hi, grid, path, lines, sizes) -> 
                         int(lines[i]), "pigment")  # fmt: skip
     if not np.any(keep):
         raise _fail("has only ground rows: no pigment to fit", path)
+    _refuse_paints_never_laid(pigs, amts, keep, lines, path)
     ix = np.flatnonzero(keep)
     return Measurements(
         pigments=tuple(pigs[i] for i in ix), amounts=tuple(amts[i] for i in ix), ground=gnds[keep],

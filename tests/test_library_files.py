@@ -87,3 +87,35 @@ def test_predict_reads_an_old_pigment_file(run_cli, tmp_path):
     got = np.array([[float(v) for v in row.split(",")[3:6]] for row in rows]) / 255
     want = np.asarray(diffwash.colorimetry.srgb_encode(_km(RED, [1.0, 3.0], PAPER)))
     np.testing.assert_allclose(got, want, atol=2e-4)
+
+
+def test_queries_match_names_as_tables_do_and_take_a_tables_bare_ground_rows(run_cli, tmp_path):
+    """A query names a pigment ignoring case and runs of spaces (as tables and pigment files do), and a
+    measurement table's bare-ground row (`paper,0,paper`) predicts that ground: a table is a query table."""
+    lib = library_from_pigments([RED, GREEN], grounds={"paper": PAPER, "black": BLACK})
+    lib.save(tmp_path / "lib.json")
+    (tmp_path / "q.csv").write_text("pigment,amount,ground\npaper,0,paper\n  red ,1,paper\nRed,1,paper\n"
+                                    "GREEN+red,0.5+0.5,black\nBlack,0,black\n")  # fmt: skip
+    r = run_cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv")
+    assert r.returncode == 0, r.stderr
+    rows = [row.split(",") for row in (tmp_path / "p.csv").read_text().splitlines()[1:]]
+    rgb = np.array([[float(v) for v in row[3:6]] for row in rows]) / 255
+    want = np.asarray(diffwash.colorimetry.srgb_encode(np.array([PAPER, BLACK])))
+    np.testing.assert_allclose(rgb[[0, 4]], want, atol=2e-4)
+    np.testing.assert_allclose(rgb[1], rgb[2])
+    # A ground with paint on it is no pigment: refused as before, naming the file, line and column.
+    (tmp_path / "bad.csv").write_text("pigment,amount,ground\npaper,0.1,paper\n")
+    r = run_cli("predict", "lib.json", "--table", "bad.csv", "-o", "p2.csv")
+    assert r.returncode == 2 and "bad.csv: line 2: pigment: no pigment 'paper'" in r.stderr, r.stderr
+    assert not (tmp_path / "p2.csv").exists()
+
+
+@pytest.mark.parametrize("name, joins", [("Sap+Green", "the names of a mixture"), ("Sap/Green", "the layers of a glaze stack")])
+def test_a_library_name_that_no_query_could_name_is_refused(tmp_path, name, joins):
+    library_from_pigments([RED], grounds={"paper": PAPER}).save(tmp_path / "lib.json")
+    d = json.loads((tmp_path / "lib.json").read_text())
+    d["pigments"][0]["name"] = name
+    (tmp_path / "bad.json").write_text(json.dumps(d))
+    with pytest.raises(DiffwashError) as e:
+        load_library(tmp_path / "bad.json")
+    assert str(e.value) == f"{tmp_path / 'bad.json'}: pigments[0].name: must not hold '{name[3]}' (it joins {joins}), got {name!r}"

@@ -49,6 +49,8 @@ def _refused(result, *needles):
         (PAPER + "P1,-0.01,paper,0.2,0.1,0.5,0.6\n", ("line 3", "amount", ">= 0")),
         (PAPER + "P1,0.02,board,0.2,0.1,0.5,0.6\n", ("line 3", "ground", "board")),
         (PAPER.replace("0.8,", "80,") + "P1,0.02,paper,0.2,0.1,0.5,0.6\n", ("line 2", "400", "percent")),
+        (PAPER + "P1,0.02,paper,0.2,0.1,0.5,0.6\nGhost,0,paper,0.8,0.82,0.85,0.86\nP1+Ghost,0.02+0,paper,0.2,0.1,0.5,0.6\n",
+         ("line 4", "amount", "'Ghost' is only ever at amount 0")),
     ],
 )  # fmt: skip
 def test_bad_tables_are_refused_and_nothing_is_written(cli, tmp_path, body, needles):

@@ -32,7 +32,7 @@ import numpy as np
 from . import colorimetry, mixing
 from ._errors import DiffwashError
 
-__all__ = ["KINDS", "Posterior", "kinds", "lab_draws", "radius90", "de2000_90"]
+__all__ = ["KINDS", "Posterior", "kinds", "laid", "lab_draws", "radius90", "de2000_90"]
 
 #: The kinds of row a model error is kept for (`kinds`).
 KINDS = ("single", "seen", "unseen", "unmixed")
@@ -106,7 +106,7 @@ def kinds(pigments, seen) -> list[str]:
     out = []
     for names in pigments:
         key = tuple(sorted({n.lower() for n in names}))
-        if len(key) == 1:
+        if len(key) <= 1:  # one pigment, or none (the bare ground)
             out.append("single")
         elif key in sets:
             out.append("seen")
@@ -151,19 +151,29 @@ def _draw_labs(palette, A, G, k2, lab_of, ths):
 
 def radius90(lab: np.ndarray, spread: np.ndarray, scale: np.ndarray, level: float = LEVEL) -> np.ndarray:
     """The CIEDE2000 radius around each `lab` (N, 3) that holds `level` of `lab + spread + scale e`, `spread`
-    the parameter draws' deviations (D, N, 3), `e` standard normal in CIELAB (fixed seed), shape (N,)."""
+    the parameter draws' deviations (D, N, 3), `e` standard normal in CIELAB (fixed seed), shape (N,). Every row
+    takes the same draws of `e` (as of the parameters): two rows that lay down the same paint get the same radius,
+    not two Monte Carlo estimates of it."""
     lab = np.asarray(lab, np.float64)
     if len(lab) == 0:
         return np.zeros(0)
-    e = np.random.default_rng(SEED + 1).standard_normal(spread.shape)
+    e = np.random.default_rng(SEED + 1).standard_normal((spread.shape[0], 1, 3))
     samples = lab[None] + spread + np.asarray(scale, np.float64)[None, :, None] * e
     de = np.asarray(colorimetry.delta_e_2000(jnp.asarray(lab[None]), jnp.asarray(samples)), np.float64)
     return np.quantile(de, level, axis=0)
 
 
-def de2000_90(post: Posterior, palette: mixing.Palette, A, G, k2, lab_of, lab, pigments) -> np.ndarray:
-    """Each row's `de2000_90` (NaN where the library measured no model error for its kind)."""
-    s = np.array([post.model_error.get(k, np.nan) for k in kinds(pigments, post.seen)])
+def laid(palette: mixing.Palette, A) -> list[tuple[str, ...]]:
+    """The pigments each row of amounts `A` (N, P) or stacks (N, L, P) lays down (an amount above 0): what its kind
+    depends on (`P1+P4` at `0.02+0` is P1 alone, and `P1/P4` at `0.02/0` too)."""
+    on = np.asarray(A).reshape(len(A), -1, len(palette.names)).sum(axis=1) > 0
+    return [tuple(palette.names[i] for i in np.flatnonzero(row)) for row in on]
+
+
+def de2000_90(post: Posterior, palette: mixing.Palette, A, G, k2, lab_of, lab) -> np.ndarray:
+    """Each row's `de2000_90` (NaN where the library measured no model error for its kind), its kind from the
+    pigments the row lays down (`laid`)."""
+    s = np.array([post.model_error.get(k, np.nan) for k in kinds(laid(palette, A), post.seen)])
     ok = np.isfinite(s)
     out = np.full(len(lab), np.nan)
     if ok.any():

@@ -206,7 +206,7 @@ class Library:
         lab = np.asarray(lab, np.float64)
         r90 = None
         if self.posterior is not None:
-            r90 = _regions.de2000_90(self.posterior, self.palette, A, G, self.k2, self.observation.lab, lab, q.pigments)
+            r90 = _regions.de2000_90(self.posterior, self.palette, A, G, self.k2, self.observation.lab, lab)
         return Prediction(np.asarray(R, np.float64), np.asarray(rgb, np.float64), lab, self.observation.bands, r90)
 
     def to_dict(self) -> dict[str, Any]:

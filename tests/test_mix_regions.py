@@ -114,7 +114,7 @@ def test_a_pigment_fitted_at_its_scattering_edge_gets_a_bounded_region_from_its_
     np.testing.assert_allclose(bounded[:k], wide[:k])
     # Its mixture with A gets a finite region, from the (bounded) draws and its kind's model error.
     post = _regions.Posterior(*_posterior.scaled(F, diag, a, owner), {"unseen": 2.0, "unmixed": 5.0}, ())
-    r = _regions.de2000_90(post, pal, A[:1] + A[k : k + 1], G[:1], 0.0, obs.lab, lab_pred[:1], [("A", "B")])
+    r = _regions.de2000_90(post, pal, A[:1] + A[k : k + 1], G[:1], 0.0, obs.lab, lab_pred[:1])
     assert np.isfinite(r[0]) and 3 < r[0] < 15
 
 
@@ -130,6 +130,10 @@ def test_predictions_carry_regions_that_widen_with_the_posterior_and_vanish_for_
     no_unseen = _library(_posterior_of(n, 1e-4, {"single": 0.5}))
     p = no_unseen.predict(["A", "A+B"], ["0.03", "0.01+0.02"])
     assert np.isfinite(p.de2000_90[0]) and np.isnan(p.de2000_90[1])  # no region without a model error
+    # A row's kind is what it lays down: A+B at 0.03+0, A/B at 0.03/0 and A+A at 0.01+0.02 are A at 0.03.
+    same = narrow.predict(["A", "A+B", "A/B", "A+A"], ["0.03", "0.03+0", "0.03/0", "0.01+0.02"])
+    np.testing.assert_allclose(same.de2000_90, same.de2000_90[0], rtol=1e-9)
+    assert narrow.predict(["A+B"], ["0+0"]).de2000_90[0] > 0  # the bare ground: a single paint's region
     csv_text = library.prediction_csv(library._as_queries(["A", "A+B"], ["0.03", "0.01+0.02"], None), p)
     assert csv_text.splitlines()[0].split(",")[9] == "de2000_90" and csv_text.splitlines()[2].split(",")[9] == ""
 

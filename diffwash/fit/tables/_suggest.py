@@ -160,8 +160,15 @@ def _residual_noise(lib: Library) -> float:
 
 
 def _mixed_sets(q: Queries, i: int) -> frozenset[tuple[str, ...]]:
-    """The sets of paints row `i` mixes within one layer (sorted, lower case): what measuring it makes seen."""
-    return frozenset(tuple(sorted({n.lower() for n in names})) for names, _ in q.row_layers(i) if len(set(names)) > 1)
+    """The sets of paints row `i` mixes within one layer (sorted, lower case; paints at amount 0 left out): what
+    measuring it makes seen."""
+    sets = (tuple(sorted({n.lower() for n, a in zip(names, amounts) if a > 0})) for names, amounts in q.row_layers(i))
+    return frozenset(s for s in sets if len(s) > 1)
+
+
+def _laid(q: Queries) -> list[tuple[str, ...]]:
+    """Each row's paints at an amount above 0: what its kind depends on (as `_regions.laid`, for `predict`)."""
+    return [tuple(n for n, a in zip(names, amounts) if a > 0) for names, amounts in zip(q.pigments, q.amounts)]
 
 
 class _State:
@@ -180,6 +187,7 @@ class _State:
         self.r2 = _residual_noise(lib)
         self.seen = {tuple(sorted(n.lower() for n in s)) for s in post.seen}
         self.cand, self.qry = cand, qry
+        self.laid_c, self.laid_q = _laid(cand), _laid(qry)
         self.mixed = [_mixed_sets(cand, i) for i in range(len(cand))]
 
     def s2(self, kinds: list[str]) -> np.ndarray:
@@ -188,17 +196,17 @@ class _State:
 
     def noise(self) -> np.ndarray:
         """Each candidate's measurement noise variance per CIELAB axis (kinds as they stand), shape (C,)."""
-        return np.nan_to_num(self.s2(_regions.kinds(self.cand.pigments, self.seen))) + self.r2 + NOISE_FLOOR**2
+        return np.nan_to_num(self.s2(_regions.kinds(self.laid_c, self.seen))) + self.r2 + NOISE_FLOOR**2
 
     def kind_gain(self) -> np.ndarray:
         """Each candidate's second score part: the queries' mean model-error variance it removes, shape (C,)."""
-        now = self.s2(_regions.kinds(self.qry.pigments, self.seen))
+        now = self.s2(_regions.kinds(self.laid_q, self.seen))
         out = np.zeros(len(self.cand))
         for sets in set(self.mixed):
             new = sets - self.seen
             if not new:
                 continue
-            after = self.s2(_regions.kinds(self.qry.pigments, self.seen | new))
+            after = self.s2(_regions.kinds(self.laid_q, self.seen | new))
             drop = np.where(np.isfinite(now) & np.isfinite(after), np.maximum(now - after, 0.0), 0.0)
             gain = 3 * float(np.sum(drop)) / len(self.qry)
             out[[i for i, m in enumerate(self.mixed) if m == sets]] = gain
@@ -225,12 +233,12 @@ class _State:
 
     def variance(self) -> float:
         """The queries' mean predictive variance now (parameters and model error), CIELAB units squared."""
-        s2 = np.nan_to_num(self.s2(_regions.kinds(self.qry.pigments, self.seen)))
+        s2 = np.nan_to_num(self.s2(_regions.kinds(self.laid_q, self.seen)))
         return float((np.sum((self.L.T @ self.G) * self.L.T) + 3 * np.sum(s2)) / len(self.qry))
 
     def mean_de2000_90(self) -> float:
         """The queries' mean `de2000_90` under the current W and seen sets (NaN if no query has a region)."""
-        s = np.sqrt(self.s2(_regions.kinds(self.qry.pigments, self.seen)))
+        s = np.sqrt(self.s2(_regions.kinds(self.laid_q, self.seen)))
         ok = np.isfinite(s)
         if not ok.any():
             return float("nan")

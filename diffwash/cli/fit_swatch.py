@@ -66,7 +66,9 @@ def add_arguments(p) -> None:
                    help="table: pigments vmapped in one program, or one after another (default auto: "
                         "a loop on a CPU for up to 16 pigments, where it is faster)")  # fmt: skip
     p.add_argument("--max-steps", type=int, default=1000, metavar="N",
-                   help="Levenberg-Marquardt steps at most (default: %(default)s)")  # fmt: skip
+                   help="Levenberg-Marquardt steps at most per solve (default: %(default)s); a one-pigment card fit "
+                        "weighted by its noise solves up to four times as it re-estimates the noise, and reports "
+                        "the steps of all its solves")  # fmt: skip
     p.add_argument("--allow-unconverged", action="store_true", help="write the result even if the fit did not converge")
     add_image_limit(p)
 

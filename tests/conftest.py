@@ -47,6 +47,8 @@ import diffwash._cache  # noqa: E402
 
 diffwash._cache.enable_compilation_cache = lambda: None  # in-process commands keep the folder above
 
+from diffwash.cli import main  # noqa: E402
+
 import hypothesis  # noqa: E402
 import pytest  # noqa: E402
 
@@ -126,6 +128,24 @@ def _relieve_compiled_programs():
     die inside XLA's compiler (a segmentation fault, or an abort) when its maps ran out."""
     yield
     diffwash._cache.relieve_compiled_programs()
+
+
+@pytest.fixture
+def cli(capsys, tmp_path, monkeypatch):
+    """`diffwash ARGS...` in this process (`diffwash.cli.main`), from `tmp_path`: returns (status, stdout, stderr)."""
+    monkeypatch.chdir(tmp_path)
+    # main() sets MPLBACKEND for its figures; undone after the test (a notebook kernel started later inherits it).
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+
+    def run(*args):
+        try:
+            status = main([str(a) for a in args])
+        except SystemExit as e:  # argparse's usage errors
+            status = e.code
+        out, err = capsys.readouterr()
+        return status, out, err
+
+    return run
 
 
 @pytest.fixture

@@ -19,28 +19,9 @@ from conftest import DATA, ROOT
 from PIL import Image
 
 import diffwash
-from diffwash.cli import main
 from diffwash.swatchcard import IDEAL, make_swatch_card, save_swatch_card
 
 SPHERE = DATA / "meshes" / "sphere.ply"
-
-
-@pytest.fixture
-def cli(capsys, tmp_path, monkeypatch):
-    """`diffwash ARGS...` in this process, from `tmp_path`: returns (status, stdout, stderr)."""
-    monkeypatch.chdir(tmp_path)
-    # main() sets MPLBACKEND for its figures; undone after the test (a notebook kernel started later inherits it).
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-
-    def run(*args):
-        try:
-            status = main([str(a) for a in args])
-        except SystemExit as e:  # argparse's usage errors
-            status = e.code
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
 
 
 def refused(result, *needles, status=2):

@@ -5,6 +5,7 @@ import sys
 
 import numpy as np
 import pytest
+from PIL import Image
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -93,30 +94,36 @@ def test_reference_forms_agree():
     assert parse_layout(L.to_dict(), size=(100, 80)).references[0].box == L.references[0].box
 
 
-def _card_with_references(tmp_path, n):
-    """A generated swatch card with a strip of `n` checker patches of known colour above it (as the camera saw
-    them: its exposure and white balance, sRGB-encoded)."""
+def card_with_references(tmp_path, lab, jpeg: bool = False):
+    """A generated swatch card (Quinacridone Rose) with a strip of patches of known colour `lab` (at most 8) above
+    it, as the camera saw them (its exposure and white balance, sRGB-encoded): tmp_path/card.png (16 bits), or
+    card.jpg (quality 90) with `jpeg`; its layout as tmp_path/card.json."""
     card = make_swatch_card(pigments.load("Quinacridone Rose"), coats=(1, 2), patch=40, seed=3)
     H, W, _ = card.photo.shape
     side, strip = 24, 76
-    lab = checker_references()[:: max(1, 24 // n)][:n]
     photo = np.concatenate([np.repeat(card.photo[:1], strip, axis=0), card.photo], axis=0)
     gains = card.effects.exposure * np.asarray(card.effects.white_balance)
     refs = []
     for i, c in enumerate(lab):
         x0, y0 = 8 + (i % 4) * (side + 6), 8 + (i // 4) * (side + 6)
         photo[y0 : y0 + side, x0 : x0 + side] = colorimetry.to_display(np.clip(lab_to_linear(c) * gains, 0, 1))
-        refs.append({"box": [x0, y0, x0 + side, y0 + side], "lab": c.tolist()})
-    assert n <= 8 and 8 + 4 * (side + 6) < W
+        refs.append({"box": [x0, y0, x0 + side, y0 + side], "lab": np.asarray(c).tolist()})
+    assert len(lab) <= 8 and 8 + 4 * (side + 6) < W
     layout = json.loads(json.dumps(card.layout))
     shift = lambda b: [b[0], b[1] + strip, b[2], b[3] + strip]  # noqa: E731
-    layout["paper"]["box"] = shift(layout["paper"]["box"])
-    layout["black"]["box"] = shift(layout["black"]["box"])
-    for p in layout["patches"]:
-        p["box"] = shift(p["box"])
+    for part in (layout["paper"], layout["black"], *layout["patches"]):
+        part["box"] = shift(part["box"])
     layout["references"] = refs
-    write_png(tmp_path / "card.png", photo, bits=16)
+    if jpeg:
+        Image.fromarray(np.round(255 * np.clip(photo, 0, 1)).astype(np.uint8)).save(tmp_path / "card.jpg", quality=90)
+    else:
+        write_png(tmp_path / "card.png", photo, bits=16)
     (tmp_path / "card.json").write_text(json.dumps(layout))
+
+
+def _card_with_references(tmp_path, n):
+    """`card_with_references` with `n` of the checker's patches."""
+    card_with_references(tmp_path, checker_references()[:: max(1, 24 // n)][:n])
 
 
 def test_fit_swatch_reads_the_photo_through_references(run_cli, tmp_path):

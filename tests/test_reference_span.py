@@ -10,34 +10,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from conftest import DATA
-from PIL import Image
+from test_photo_calibration import card_with_references
 
 from diffwash import DiffwashError, colorimetry, pigments
-from diffwash.cli import main
 from diffwash.fit.photos._camera import checker_references, fit_camera, lab_to_linear
 from diffwash.fit.photos._noise import RGB_TO_YCC, JpegSteps, _row_norms, pixel_noise
 from diffwash.fit.photos._photo import calibrate, check_readings, linearise, parse_layout, reference_readings
-from diffwash.swatchcard import make_swatch_card
 
 CARD = DATA / "examples" / "card.jpg"
 PAPER, BLACK = [93, 0, 3], [12, 0, 0]
-
-
-@pytest.fixture
-def cli(capsys, tmp_path, monkeypatch):
-    """`diffwash ARGS...` in this process, from `tmp_path`: returns (status, stdout, stderr)."""
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-
-    def run(*args):
-        try:
-            status = main([str(a) for a in args])
-        except SystemExit as e:  # argparse's usage errors
-            status = e.code
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
 
 
 def _example_layout(tmp_path, refs):
@@ -76,31 +57,10 @@ def test_coloured_references_on_one_colour_of_the_photo_are_refused(cli, tmp_pat
     assert not (tmp_path / "out.json").exists()
 
 
-def _card_with_references(tmp_path, lab):
-    """A generated swatch card (Quinacridone Rose) with a strip of patches of known colour `lab` above it, as
-    the camera saw them, saved as a JPEG (quality 90); its layout as tmp_path/card.json."""
-    card = make_swatch_card(pigments.load("Quinacridone Rose"), coats=(1, 2), patch=40, seed=3)
-    side, strip = 24, 76
-    photo = np.concatenate([np.repeat(card.photo[:1], strip, axis=0), card.photo], axis=0)
-    gains = card.effects.exposure * np.asarray(card.effects.white_balance)
-    refs = []
-    for i, c in enumerate(lab):
-        x0, y0 = 8 + (i % 4) * (side + 6), 8 + (i // 4) * (side + 6)
-        photo[y0 : y0 + side, x0 : x0 + side] = colorimetry.to_display(np.clip(lab_to_linear(c) * gains, 0, 1))
-        refs.append({"box": [x0, y0, x0 + side, y0 + side], "lab": np.asarray(c).tolist()})
-    layout = json.loads(json.dumps(card.layout))
-    shift = lambda b: [b[0], b[1] + strip, b[2], b[3] + strip]  # noqa: E731
-    for part in (layout["paper"], layout["black"], *layout["patches"]):
-        part["box"] = shift(part["box"])
-    layout["references"] = refs
-    Image.fromarray(np.round(255 * np.clip(photo, 0, 1)).astype(np.uint8)).save(tmp_path / "card.jpg", quality=90)
-    (tmp_path / "card.json").write_text(json.dumps(layout))
-
-
 def test_coloured_references_still_calibrate_a_jpeg_without_warnings(cli, tmp_path):
     # Eight ColorChecker patches: the references span colour space. A JPEG goes through the noise model's JPEG
     # branch, where the overflow was; warnings are errors here.
-    _card_with_references(tmp_path, checker_references()[::3][:8])
+    card_with_references(tmp_path, checker_references()[::3][:8], jpeg=True)
     code, out, err = cli("fit-swatch", "card.jpg", "--layout", "card.json", "-o", "rose.json")
     assert code == 0, err
     assert "calibrated from 8 references of known colour" in out and "Warning" not in err, err

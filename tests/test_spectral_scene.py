@@ -21,7 +21,6 @@ import diffwash
 from diffwash import lut, shading
 from diffwash._mixture import Mixture
 from diffwash._scene import parse_scene
-from diffwash.cli import main
 from diffwash.library import load_library
 
 LIBRARY = DATA / "libraries" / "ntu-four.json"
@@ -239,23 +238,6 @@ def test_fit_image_finds_the_shading_constants_of_a_mixture_scene():
 
 
 # --- bad input -------------------------------------------------------------------------------------------------
-
-
-@pytest.fixture
-def cli(capsys, tmp_path, monkeypatch):
-    """`diffwash ARGS...` in this process, from `tmp_path`: returns (status, stdout, stderr)."""
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-
-    def run(*args):
-        try:
-            status = main([str(a) for a in args])
-        except SystemExit as e:
-            status = e.code
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
 
 
 def _bad_library(folder):

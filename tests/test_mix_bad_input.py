@@ -7,31 +7,14 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from diffwash.cli import main
 
 HEAD = "pigment,amount,ground,400,500,600,700\n"
 PAPER = "paper,0,paper,0.8,0.82,0.85,0.86\n"
 GOOD = HEAD + PAPER + "P1,0.02,paper,0.2,0.1,0.5,0.6\nP2,0.02,paper,0.1,0.5,0.3,0.2\nP1+P2,0.01+0.01,paper,0.1,0.1,0.3,0.3\n"
 
 
-@pytest.fixture
-def cli(capsys, tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-
-    def run(*args):
-        try:
-            status = main([str(a) for a in args])
-        except SystemExit as e:
-            status = e.code
-        _, err = capsys.readouterr()
-        return status, err
-
-    return run
-
-
 def _refused(result, *needles):
-    status, err = result
+    status, _, err = result
     assert status == 2, err
     assert err.startswith("diffwash") and err.count("\n") == 1 and "Traceback" not in err, err
     for n in needles:
@@ -154,7 +137,7 @@ def test_pair_terms_that_add_up_past_float32_still_predict_finite_colours(cli, t
 
     _pairs(tmp_path / "lib.json", change)
     (tmp_path / "q.csv").write_text("pigment,amount,ground\nP1+P4,1e30+1e30,paper\nP1+P4,0.01+0.02,paper\n")
-    status, err = cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv")
+    status, _, err = cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv")
     assert status == 0 and err == "", err
     assert "nan" not in (tmp_path / "p.csv").read_text().lower()
 
@@ -353,7 +336,7 @@ def test_a_thick_layer_at_a_huge_amount_is_its_masstone(cli, tmp_path, amount):
 
     _library(tmp_path)
     (tmp_path / "q.csv").write_text(f"pigment,amount,ground\nP1,{amount},paper\nP1+P1,{amount}+{amount},paper\n")
-    status, err = cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv")
+    status, _, err = cli("predict", "lib.json", "--table", "q.csv", "-o", "p.csv")
     assert status == 0, err
     lib = load_library(tmp_path / "lib.json")
     masstone = np.asarray(km.infinite_reflectance(lib.palette.K[0], lib.palette.S[0]))
@@ -409,6 +392,6 @@ def test_a_mixture_glaze_with_a_null_amount_takes_the_librarys_reference(cli, tm
         scene[key]["library"] = str(ROOT / "data" / "libraries" / "ntu-four.json")
     scene["wash"]["amount"] = None
     (tmp_path / "s.json").write_text(json.dumps(scene))
-    status, err = cli("render", "s.json", "-o", "r.png")
+    status, _, err = cli("render", "s.json", "-o", "r.png")
     assert status == 0 and err == "", err
     assert (tmp_path / "r.png").exists()

@@ -162,8 +162,9 @@ class Library:
         out = np.zeros((len(pigments), max((len(k) for k in sizes), default=1), len(self.names)))
         for r, (names, amts, k) in enumerate(zip(pigments, amounts, sizes)):
             for n, a, at in zip(names, amts, np.repeat(np.arange(len(k)), k)):
-                i = index.get(_schema.name_key(n))
-                if i is None and a == 0 and _schema.name_key(n) in bare:
+                key = _schema.name_key(n)
+                i = index.get(key)
+                if i is None and a == 0 and key in bare:
                     continue
                 if i is None:
                     where = f"line {int(lines[r])}: pigment" if lines is not None else f"row {r + 1}: pigment"

@@ -478,16 +478,15 @@ def _rgb_values(vals: np.ndarray, linear: bool, path: Path, lines: np.ndarray) -
 def _refuse_paints_never_laid(pigs, amts, keep, lines, path) -> None:
     """Refuse a pigment whose every amount in the table is 0: no row shows it, and a fit would invent it."""
     laid: dict[str, float] = {}
-    first: dict[str, int] = {}
+    first: dict[str, tuple[int, str]] = {}  # each name's first row, as written there
     for i in np.flatnonzero(keep):
         for n, a in zip(pigs[i], amts[i]):
             key = _schema.name_key(n)
             laid[key] = max(laid.get(key, 0.0), a)
-            first.setdefault(key, i)
+            first.setdefault(key, (i, n))
     for key, most in laid.items():
         if most == 0:
-            i = first[key]
-            name = pigs[i][[_schema.name_key(n) for n in pigs[i]].index(key)]
+            i, name = first[key]
             raise _fail(f"{name!r} is only ever at amount 0: no row shows its paint (measure it at an amount > 0, "
                         f"or leave its rows out)", path, int(lines[i]), "amount")  # fmt: skip
 

@@ -27,7 +27,7 @@ def _additive(effects):
 
 def test_terms_that_are_sums_of_pigment_effects_are_inferred_exactly_without_the_ridge():
     effects = np.random.default_rng(3).normal(0, 0.2, (5, 10))
-    out = _pairs.infer_pair_terms(_additive(effects), 5, ridge=1e-9)
+    out = _pairs.infer_pair_terms(_additive(effects), ridge=1e-9)
     assert out.inferred == ((0, 3),)  # pigment 4 was never mixed: no pair of it is inferred
     assert out.members == MEASURED + ((0, 3),)
     theta = np.concatenate([out.k_bumps, out.s_bumps, np.asarray(out.k_amount)[:, None],
@@ -39,7 +39,7 @@ def test_terms_that_are_sums_of_pigment_effects_are_inferred_exactly_without_the
 def test_the_default_ridge_shrinks_inferred_terms_towards_duncan():
     effects = np.random.default_rng(4).normal(0, 0.2, (5, 10))
     exact = effects[0] + effects[3]
-    got = _pairs.infer_pair_terms(_additive(effects), 5)
+    got = _pairs.infer_pair_terms(_additive(effects))
     theta = np.concatenate([got.k_bumps[-1], got.s_bumps[-1], [got.k_amount[-1], got.s_amount[-1]]])
     # With 2-3 measured pairs per pigment and a ridge of 10, each effect keeps about a fifth of itself.
     assert 0.05 < np.linalg.norm(theta) / np.linalg.norm(exact) < 0.5
@@ -48,20 +48,20 @@ def test_the_default_ridge_shrinks_inferred_terms_towards_duncan():
 
 def test_inferring_again_changes_nothing_and_nothing_to_infer_is_the_same_terms():
     terms = _additive(np.random.default_rng(5).normal(0, 0.2, (5, 10)))
-    once = _pairs.infer_pair_terms(terms, 5)
-    twice = _pairs.infer_pair_terms(once, 5)
+    once = _pairs.infer_pair_terms(terms)
+    twice = _pairs.infer_pair_terms(once)
     assert twice.members == once.members and twice.inferred == once.inferred
     np.testing.assert_allclose(twice.k_bumps, once.k_bumps)
     every = _terms(np.zeros((3, 10)), ((0, 1), (0, 2), (1, 2)))
-    assert _pairs.infer_pair_terms(every, 3) is every
-    assert _pairs.infer_pair_terms(None, 3) is None
+    assert _pairs.infer_pair_terms(every) is every
+    assert _pairs.infer_pair_terms(None) is None
 
 
 def test_inferred_terms_stay_within_what_a_library_file_may_hold():
     # Measured terms within the bounds (pigments 0 and 3 each at 0.8 of it, 1 and 2 at 0.1), whose effects add past it.
     bound = np.asarray([_schema.PAIR_BUMP_MAX] * 8 + [_schema.PAIR_AMOUNT_MAX] * 2)
     effects = np.asarray([0.8, 0.1, 0.1, 0.8, 0.0])[:, None] * bound
-    out = _pairs.infer_pair_terms(_additive(effects), 5, ridge=1e-9)
+    out = _pairs.infer_pair_terms(_additive(effects), ridge=1e-9)
     assert float(jnp.max(out.k_bumps[-1])) == _schema.PAIR_BUMP_MAX
     assert float(jnp.max(out.s_amount[-1])) == _schema.PAIR_AMOUNT_MAX
 
@@ -84,29 +84,29 @@ def _two_kinds(seed=0):
 def test_a_pair_of_like_paints_takes_what_like_pairs_did():
     pigments, terms = _two_kinds()
     true = np.asarray(TRUE)
-    like = _pairs.infer_pair_terms(terms, 6, ridge=1e-3, pigments=pigments)
-    effects_only = _pairs.infer_pair_terms(terms, 6, ridge=1e-3)
+    like = _pairs.infer_pair_terms(terms, ridge=1e-3, pigments=pigments)
+    effects_only = _pairs.infer_pair_terms(terms, ridge=1e-3)
     assert like.inferred == effects_only.inferred == ((0, 3),)
     np.testing.assert_allclose(_theta(like), true, atol=1e-3)
     assert _theta(effects_only) @ true < 0  # the effects alone get it wrong: two of a kind pull the other way
     # With the default ridge, shrunk towards Duncan but pointing the right way.
-    got = _theta(_pairs.infer_pair_terms(terms, 6, pigments=pigments))
+    got = _theta(_pairs.infer_pair_terms(terms, pigments=pigments))
     assert 0.5 < got @ true / (true @ true) < 1.0
 
 
 def test_without_likeness_the_inference_is_the_effects_ridge_regression():
     pigments, terms = _two_kinds(1)
-    a = _pairs.infer_pair_terms(terms, 6, pigments=pigments, like=0.0)
-    b = _pairs.infer_pair_terms(terms, 6)
+    a = _pairs.infer_pair_terms(terms, pigments=pigments, like=0.0)
+    b = _pairs.infer_pair_terms(terms)
     np.testing.assert_allclose(_theta(a), _theta(b), atol=1e-12)
     # Pigments all alike (no distance to scale by) are alike, not NaN.
     same = (np.ones((6, 8)), np.ones((6, 8)))
-    assert np.isfinite(_theta(_pairs.infer_pair_terms(terms, 6, pigments=same))).all()
+    assert np.isfinite(_theta(_pairs.infer_pair_terms(terms, pigments=same))).all()
 
 
 def test_a_library_file_marks_inferred_pairs_and_reads_them_back(tmp_path):
     pal = _palette()
-    terms = _pairs.infer_pair_terms(_terms(np.stack([TRUE, TRUE]), ((0, 1), (1, 2))), 3)
+    terms = _pairs.infer_pair_terms(_terms(np.stack([TRUE, TRUE]), ((0, 1), (1, 2))))
     assert terms.inferred == ((0, 2),)
     lib = library.Library(eqx_replace(pal, terms), {"paper": np.full(len(GRID), 0.85)}, spectral.observation(GRID))
     lib.save(tmp_path / "lib.json")
@@ -188,9 +188,9 @@ def test_a_fit_infers_the_pair_it_never_measured_and_its_folds_predict_as_it_doe
     assert np.abs(got.lab - duncan.predict(*q).lab).max() > 1e-3  # the inferred terms act on the pair
     # ... and are those of the measured pairs and the fitted pigments' likeness.
     pal = lib.palette
-    again = _pairs.infer_pair_terms(_drop_inferred(pal.pairs), len(names), pigments=(pal.K, pal.S))
+    again = _pairs.infer_pair_terms(_drop_inferred(pal.pairs), pigments=(pal.K, pal.S))
     np.testing.assert_allclose(_theta(again), _theta(pal.pairs), atol=1e-6)
-    assert np.abs(_theta(_pairs.infer_pair_terms(_drop_inferred(pal.pairs), len(names))) - _theta(again)).max() > 1e-4
+    assert np.abs(_theta(_pairs.infer_pair_terms(_drop_inferred(pal.pairs))) - _theta(again)).max() > 1e-4
 
 
 def test_an_rgb_table_gets_pair_terms_and_infers_the_pair_it_never_measured(tmp_path, monkeypatch, capsys):

@@ -631,7 +631,7 @@ def fit_mixtures(
             held_seen = np.full(len(m), np.nan)
             held_seen[one] = _pairs.held_out_de2000(palette, A1, G1, lab1, obs.lab, k2, ridge=model.pair_ridge)
         if model.infer_pairs and terms is not None:
-            inferred = _pairs.infer_pair_terms(terms, len(names), pigments=(palette.K, palette.S))
+            inferred = _pairs.infer_pair_terms(terms, pigments=(palette.K, palette.S))
             palette = eqx.tree_at(lambda p: p.pairs, palette, inferred)
     # the folds infer their held-out pairs' terms where the fit inferred terms (`_fold_lab_with_pairs`)
     fold_rows = one_layer if model.infer_pairs and palette.pairs is not None else None
@@ -722,12 +722,11 @@ def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, grounds: 
     whole table's shapes: one compiled program for every fold), and the held-out pairs' terms inferred from those
     (`_pairs.infer_pair_terms`)."""
     K, S, gam, w, k2 = params
-    P = len(names)
     palette = mixing.Palette(K=jnp.asarray(K), S=jnp.asarray(S), law=mixing.AmountLaw(gamma=jnp.asarray(gam)),
                              weights=jnp.asarray(w), names=tuple(names), wavelengths=obs.wavelengths)  # fmt: skip
     terms, _ = _pairs.fit_pair_terms(palette, rows.A1, rows.G1, rows.lab1, obs.lab, k2, ridge=model.pair_ridge,
                                      use=~np.asarray(test)[rows.one])  # fmt: skip
-    inferred = _pairs.infer_pair_terms(terms, P, pigments=(palette.K, palette.S))
+    inferred = _pairs.infer_pair_terms(terms, pigments=(palette.K, palette.S))
     palette = eqx.tree_at(lambda p: p.pairs, palette, inferred, is_leaf=lambda x: x is None)
     held = m.select(np.asarray(test))
     lib = Library(palette=palette, grounds=dict(grounds), observation=obs, k2=float(k2))

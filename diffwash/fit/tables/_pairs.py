@@ -288,14 +288,13 @@ def _likeness(pigments, mixed: list[int], scale: float) -> np.ndarray:
 
 def infer_pair_terms(
     terms: mixing.PairTerms | None,
-    P: int,
     ridge: float = EFFECT_RIDGE,
     *,
     pigments: tuple[np.ndarray, np.ndarray] | None = None,
     like: float = LIKE_WEIGHT,
     scale: float = LIKE_SCALE,
 ) -> mixing.PairTerms | None:
-    r"""`terms` (fitted to measured pairs of `P` pigments) and, for every pair never measured mixed whose two
+    r"""`terms` (fitted to measured pairs) and, for every pair never measured mixed whose two
     pigments were each measured mixed with others, terms inferred from the measured pairs (`inferred`).
 
     A measured pair's $2n + 2$ numbers are read as one effect per pigment, plus a part that like pairs share, plus

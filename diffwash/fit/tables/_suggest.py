@@ -142,13 +142,14 @@ def _rows(table: Any, what: str) -> Queries:
     return q
 
 
-def _draws(lib: Library, q: Queries) -> tuple[np.ndarray, np.ndarray]:
-    """The rows' predicted CIELAB (N, 3) and the posterior draws' deviations from it (D, N, 3); every call draws
-    the same parameters (`lab_draws`' fixed seed), so the deviations of separate calls form one ensemble."""
+def _draws(lib: Library, q: Queries) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rows' predicted CIELAB (N, 3), the posterior draws' deviations from it (D, N, 3), and their layers'
+    amounts (N, L, P); every call draws the same parameters (`lab_draws`' fixed seed), so the deviations of separate
+    calls form one ensemble."""
     A = lib.layer_amounts(q.pigments, q.amounts, q.layers, file=q.path, lines=q.lines)
     G = lib.ground_matrix(q.ground, file=q.path, lines=q.lines)
     lab = replace(lib, posterior=None).predict(q).lab  # the colour alone (its regions are computed here)
-    return lab, _regions.lab_draws(lib.posterior, lib.palette, A, G, lib.k2, lib.observation.lab)
+    return lab, _regions.lab_draws(lib.posterior, lib.palette, A, G, lib.k2, lib.observation.lab), A
 
 
 def _residual_noise(lib: Library) -> float:
@@ -159,16 +160,11 @@ def _residual_noise(lib: Library) -> float:
     return float(np.mean(de**2) / 3) if len(de) else 0.0
 
 
-def _mixed_sets(q: Queries, i: int) -> frozenset[tuple[str, ...]]:
-    """The sets of paints row `i` mixes within one layer (sorted, lower case; paints at amount 0 left out): what
-    measuring it makes seen."""
-    sets = (tuple(sorted({n.lower() for n, a in zip(names, amounts) if a > 0})) for names, amounts in q.row_layers(i))
+def _mixed_sets(names: tuple[str, ...], A: np.ndarray) -> frozenset[tuple[str, ...]]:
+    """The sets of paints a row mixes within one layer (sorted, lower case; paints at amount 0 left out), from its
+    layers' amounts `A` (L, P) of the library's paints `names`: what measuring it makes seen."""
+    sets = (tuple(sorted(names[i].lower() for i in np.flatnonzero(layer > 0))) for layer in A)
     return frozenset(s for s in sets if len(s) > 1)
-
-
-def _laid(q: Queries) -> list[tuple[str, ...]]:
-    """Each row's paints at an amount above 0: what its kind depends on (as `_regions.laid`, for `predict`)."""
-    return [tuple(n for n, a in zip(names, amounts) if a > 0) for names, amounts in zip(q.pigments, q.amounts)]
 
 
 class _State:
@@ -177,8 +173,8 @@ class _State:
 
     def __init__(self, lib: Library, cand: Queries, qry: Queries):
         post = lib.posterior
-        self.lab_q, Yq = _draws(lib, qry)
-        Yc = Yq if qry is cand else _draws(lib, cand)[1]
+        self.lab_q, Yq, amounts_q = _draws(lib, qry)
+        _, Yc, amounts_c = (self.lab_q, Yq, amounts_q) if qry is cand else _draws(lib, cand)
         D = Yq.shape[0]
         self.Yq, self.Ac, self.Aq = Yq, Yc / np.sqrt(D), Yq / np.sqrt(D)
         self.G = np.einsum("dqi,eqi->de", self.Aq, self.Aq)
@@ -187,8 +183,8 @@ class _State:
         self.r2 = _residual_noise(lib)
         self.seen = {tuple(sorted(n.lower() for n in s)) for s in post.seen}
         self.cand, self.qry = cand, qry
-        self.laid_c, self.laid_q = _laid(cand), _laid(qry)
-        self.mixed = [_mixed_sets(cand, i) for i in range(len(cand))]
+        self.laid_c, self.laid_q = _regions.laid(lib.palette, amounts_c), _regions.laid(lib.palette, amounts_q)
+        self.mixed = [_mixed_sets(lib.palette.names, a) for a in amounts_c]
 
     def s2(self, kinds: list[str]) -> np.ndarray:
         """The squared model error of each kind (NaN where the library measured none)."""

@@ -30,7 +30,7 @@ if os.environ.get("DIFFWASH_CACHE_DIR", os.environ.get(_OWN)) == os.environ.get(
     os.environ["DIFFWASH_CACHE_DIR"] = os.environ[_OWN] = tempfile.mkdtemp(prefix="diffwash-tests-jax-")
 
 # One folder for the test processes' own programs, made by the first (the controller) and inherited by the workers.
-_SHARED = "DIFFWASH_TESTS_SHARED_CACHE"
+_SHARED = SHARED_CACHE = "DIFFWASH_TESTS_SHARED_CACHE"
 _MADE_SHARED = not os.environ.get(_SHARED)  # the process that makes the folder removes it
 if _MADE_SHARED:
     os.environ[_SHARED] = tempfile.mkdtemp(prefix="diffwash-tests-xla-")

@@ -1,9 +1,7 @@
-"""The command line's small print: help text argparse must not garble, a card's glaze stacks in fit-swatch's
-table, suggest's progress in a log file, plain names in error messages, and help and docs that say what the
-commands take."""
+"""The command line's small print: help text argparse must not garble, suggest's progress in a log file, plain
+names in error messages, and help and docs that say what the commands take. (fit-swatch's table of a card's glaze
+stacks is tested with the card's fit, in tests/test_stacks.py.)"""
 
-import contextlib
-import io
 import json
 import sys
 
@@ -33,36 +31,6 @@ def test_help_lists_suggest_with_its_90_percent_regions_not_argparses_internals(
 def test_every_commands_help_formats(capsys, command):
     out = _help(capsys, command)
     assert "{'option_strings'" not in out and f"diffwash {command}" in out
-
-
-# fit-swatch of a card with mixtures and glaze stacks of a library's pigments.
-
-
-@pytest.fixture(scope="module")
-def card(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("card")
-    assert main(["swatch-card", "--library", str(DATA / "libraries" / "ntu-four.json"),
-                 "--patches", "P1:1,P1+P4:1+1,P1/P4:1/1,P4:2", "-o", str(folder / "c.jpg")]) == 0  # fmt: skip
-    return folder
-
-
-@pytest.fixture(scope="module")
-def card_fit(card):
-    """The card's fit: fit-swatch's standard output, and the library it wrote."""
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        status = main(["fit-swatch", str(card / "c.jpg"), "--layout", str(card / "c.json"), "-o", str(card / "l.json")])
-    assert status == 0
-    return out.getvalue(), card / "l.json"
-
-
-def test_fit_swatch_prints_glaze_stacks_with_slashes_and_counts_them_apart_from_mixtures(card_fit):
-    out, _ = card_fit
-    # 8 patches: each paint over paper and over black; P1+P4 mixed in one layer, P4 glazed over dry P1.
-    assert "from 8 patches (2 mixtures, 2 glaze stacks) in 1 photo" in out
-    rows = [line.split() for line in out.splitlines() if line.startswith("  P")]
-    assert sorted({(r[0], r[1]) for r in rows}) == [("P1", "1"), ("P1+P4", "1+1"), ("P1/P4", "1/1"), ("P4", "2")]
-    assert sum(r[0] == "P1/P4" for r in rows) == 2 and sum(r[0] == "P1+P4" for r in rows) == 2
 
 
 # suggest's progress: a line per pick where standard error is not a terminal.

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, SHARED_CACHE
 
 #: The documents whose examples must run.
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -147,9 +147,12 @@ def shims(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def jax_cache(tmp_path_factory) -> Path:
-    """A compilation cache shared by the blocks of this run (not the user's)."""
-    return tmp_path_factory.mktemp("jax-cache")
+def jax_cache() -> Path:
+    """The compilation cache the blocks of this run share (not the user's): the test processes' shared folder
+    (conftest), which both xdist workers' blocks read and write under JAX's lock, so that a Python block reuses
+    what a command-line block of the same document compiled before it (README's fit blocks: 32 s cold, 10 s
+    after the commands). The blocks run in float32, the tests in float64: their programs never share a key."""
+    return Path(os.environ[SHARED_CACHE])
 
 
 def _command(block: Block, script: Path) -> list[str]:
@@ -176,7 +179,12 @@ def run_block(block: Block, folder: Path, shims: Path, jax_cache: Path) -> str |
     env.update(
         PATH=f"{shims}{os.pathsep}{env.get('PATH', '')}",
         PYTHONPATH=f"{ROOT}{os.pathsep}{env.get('PYTHONPATH', '')}",
-        DIFFWASH_CACHE_DIR=str(jax_cache),
+        DIFFWASH_CACHE_DIR=str(jax_cache),  # the commands' cache (`diffwash.enable_compilation_cache`)
+        # Python blocks' programs go there too (JAX reads its options from the environment); a size bound turns
+        # on the lock that two processes writing one folder need.
+        JAX_COMPILATION_CACHE_DIR=str(jax_cache),
+        JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0",
+        JAX_COMPILATION_CACHE_MAX_SIZE=str(8 << 30),
         MPLBACKEND="Agg",
     )
     env.pop("JAX_ENABLE_X64", None)

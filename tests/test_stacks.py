@@ -355,10 +355,13 @@ def test_bad_stack_patches_are_refused_naming_the_field(change, field, words):
     assert str(e.value).startswith(f"card.json: patches[0].{field}: ") and words in str(e.value), str(e.value)
 
 
-def test_a_card_with_glaze_stacks_is_painted_and_fitted_jointly():
+def test_a_card_with_glaze_stacks_is_painted_and_fitted_jointly(tmp_path, cli):
+    """Through `diffwash fit-swatch`, whose table prints the stacks with slashes and counts them apart from the
+    mixtures (it printed `P1+P4` for `P1/P4` and counted stacks as mixtures)."""
+    import json
+
     from diffwash import colorimetry
-    from diffwash.fit import fit_swatch_mixtures
-    from diffwash.swatchcard import make_mixture_card
+    from diffwash.swatchcard import make_mixture_card, save_swatch_card
 
     truth = library.load_library(ROOT / "data" / "libraries" / "ntu-four.json")
     patches = [("P1", 1), ("P1", 3), ("P4", 1), ("P4", 3), ("P1/P4", "1/1"), ("P4/P1", "1/1"), ("P1/P4", "1/2"),
@@ -371,17 +374,27 @@ def test_a_card_with_glaze_stacks_is_painted_and_fitted_jointly():
     pred = truth.predict([tuple((n,) for n in r[0]) for r in rows], [tuple((0.02 * a,) for a in r[1]) for r in rows])
     np.testing.assert_allclose(card.patch_colours[paper], pred.linear_srgb, atol=1e-5)
     held = np.array([(p["pigment"], p["coats"]) == ("P1/P4", "1/2") for p in lay])
+    save_swatch_card(card, tmp_path / "c.png", bits=16)
     layout = {**card.layout, "patches": [p for p, h in zip(lay, held) if not h]}
-    fit = fit_swatch_mixtures(card.photo, layout)
-    assert fit.measurements.is_stack.sum() == 4 and fit.names == ("P1", "P4")
+    (tmp_path / "c.json").write_text(json.dumps(layout))
+    status, out, err = cli("fit-swatch", "c.png", "--layout", "c.json", "-o", "lib.json")
+    assert status == 0, err
+    # 14 patches: seven kinds over paper and over black; P1+P4 mixed in one layer, P4 over dry P1, P1 over P4.
+    assert "from 14 patches (2 mixtures, 4 glaze stacks) in 1 photo" in out, out
+    rows = [line.split() for line in out.splitlines() if line.startswith("  P")]
+    assert {(r[0], r[1]) for r in rows} >= {("P1/P4", "1/1"), ("P4/P1", "1/1"), ("P1+P4", "1+1")}, out
+    assert sum(r[0] == "P1/P4" for r in rows) == 2 and sum(r[0] == "P1+P4" for r in rows) == 2, out
+    fitted = library.load_library(tmp_path / "lib.json")
+    assert fitted.palette.names == ("P1", "P4")
     lab = lambda x: colorimetry.linear_srgb_to_lab(jnp.asarray(x, jnp.float64))  # noqa: E731
-    got = fit.library.predict(["P1/P4"] * 2, ["1/2"] * 2, [p["ground"] for p, h in zip(lay, held) if h])
+    got = fitted.predict(["P1/P4"] * 2, ["1/2"] * 2, [p["ground"] for p, h in zip(lay, held) if h])
     de = np.asarray(colorimetry.delta_e_2000(lab(card.patch_colours[held]), lab(got.linear_srgb)))
+    card_de = fitted.fit["summary"]["mean_de2000"]
     # measured (float64): the card 0.23 mean CIEDE2000; the held-out stack 0.62 over paper, 0.35 over black
-    assert fit.mean_delta_e < 1.5 and de.max() < 3.0, (fit.mean_delta_e, de)
+    assert card_de < 1.5 and de.max() < 3.0, (card_de, de)
     # The model error of mixtures the card measured comes from its rows predicted as they were painted: its stacks
     # as stacks, not as mixtures of their pigments (which missed them by about 30 CIEDE2000: "seen" was 29.6).
-    assert fit.library.fit["uncertainty"]["model_error"]["seen"] < 5.0, fit.library.fit["uncertainty"]  # 2.0
+    assert fitted.fit["uncertainty"]["model_error"]["seen"] < 5.0, fitted.fit["uncertainty"]  # 2.0
 
 
 def test_swatch_card_patches_take_stacks_and_refuse_bad_ones(run_cli, tmp_path):

@@ -1,6 +1,6 @@
 """The command line's small print: help text argparse must not garble, suggest's progress in a log file, plain
 names in error messages, and help and docs that say what the commands take. (fit-swatch's table of a card's glaze
-stacks is tested with the card's fit, in tests/test_stacks.py.)"""
+stacks, and suggest on that card's library, are tested with the card's fit, in tests/test_stacks.py.)"""
 
 import json
 import sys
@@ -113,14 +113,6 @@ def test_suggest_help_says_which_libraries_have_a_posterior(capsys):
     assert "fit-swatch --table of a spectral table)" not in out
     for words in ("swatch-card photos", "RGB ones with mixtures or glaze stacks", "--refine none"):
         assert words in out, words
-
-
-def test_suggest_ranks_on_a_card_library(card_fit, tmp_path, capsys):
-    _, lib = card_fit
-    (tmp_path / "cand.csv").write_text("pigment,amount,ground\nP1+P4,1+2,paper\nP1/P4,2/1,paper\nP4,1,black\n")
-    assert main(["suggest", str(lib), "--table", str(tmp_path / "cand.csv"), "-n", "2", "-o",
-                 str(tmp_path / "r.csv")]) == 0  # fmt: skip
-    assert len((tmp_path / "r.csv").read_text().splitlines()) == 3
 
 
 def test_suggest_refuses_a_pigment_file_saying_which_fits_have_a_posterior(tmp_path, capsys):

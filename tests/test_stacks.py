@@ -395,6 +395,10 @@ def test_a_card_with_glaze_stacks_is_painted_and_fitted_jointly(tmp_path, cli):
     # The model error of mixtures the card measured comes from its rows predicted as they were painted: its stacks
     # as stacks, not as mixtures of their pigments (which missed them by about 30 CIEDE2000: "seen" was 29.6).
     assert fitted.fit["uncertainty"]["model_error"]["seen"] < 5.0, fitted.fit["uncertainty"]  # 2.0
+    # suggest ranks candidates (a mixture, a stack, a paint over black) on a card's library
+    (tmp_path / "cand.csv").write_text("pigment,amount,ground\nP1+P4,1+2,paper\nP1/P4,2/1,paper\nP4,1,black\n")
+    status, _, err = cli("suggest", "lib.json", "--table", "cand.csv", "-n", "2", "-o", "r.csv")
+    assert status == 0 and len((tmp_path / "r.csv").read_text().splitlines()) == 3, err
 
 
 def test_swatch_card_patches_take_stacks_and_refuse_bad_ones(run_cli, tmp_path):

@@ -3,7 +3,9 @@
 Each test process (each pytest-xdist worker) gives the `diffwash` commands its tests run as subprocesses a
 folder of its own for JAX's compiled programs (one worker runs one test at a time, so no two processes write
 it at once); it is removed when the process's test session ends. Tests that time a first run (the demo's)
-or state what a cold start costs (the notebooks) pass their own `DIFFWASH_CACHE_DIR`.
+or state what a cold start costs (the notebooks) pass their own `DIFFWASH_CACHE_DIR`. The documents' code
+examples (tests/test_doc_examples.py) use the shared folder below instead, under its lock, commands and Python
+blocks alike (in float32: their programs never share a key with the tests').
 
 The test processes themselves (the controller and every xdist worker of one run) share another folder for the
 programs they compile in float64 (those that took 0.2 s or more): a fit one worker compiled is read, not
@@ -65,9 +67,9 @@ def pytest_unconfigure(config):
         shutil.rmtree(os.environ[_SHARED], ignore_errors=True)
 
 
-#: Modules whose tests take longest (a fresh-clone run's `--durations`: the doc examples 512 s of the two workers'
-#: 3,547, the notebooks 223 s, then 100-130 s each). They are collected first, so that pytest-xdist hands them out
-#: while the other worker is busy too; the run then ends on short tests instead of one worker finishing a
+#: Modules whose tests take longest (`--durations=0` of a whole run, 2026-11-28: the doc examples 512 s of the two
+#: workers' 3,547, the notebooks 223 s, then 100-130 s each). They are collected first, so that pytest-xdist hands
+#: them out while the other worker is busy too; the run then ends on short tests instead of one worker finishing a
 #: notebook alone. Each module's tests stay together, in their own order (its module fixtures are set up once).
 HEAVY_FIRST = ("test_doc_examples.py", "test_notebooks.py", "test_fit_cli.py", "test_blender.py", "test_mix_pairs.py",
                "test_stacks.py", "test_swatch_mixtures.py", "test_render_core.py", "test_mix_seen.py",

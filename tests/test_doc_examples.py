@@ -149,9 +149,9 @@ def shims(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def jax_cache() -> Path:
     """The compilation cache the blocks of this run share (not the user's): the test processes' shared folder
-    (conftest), which both xdist workers' blocks read and write under JAX's lock, so that a Python block reuses
-    what a command-line block of the same document compiled before it (README's fit blocks: 32 s cold, 10 s
-    after the commands). The blocks run in float32, the tests in float64: their programs never share a key."""
+    (conftest), which both xdist workers' blocks read and write under JAX's lock, so that a Python block reuses what
+    a command-line block of the same document compiled before it (README's Python fit block: 25 s cold, 9-10 s after
+    its command-line block). The blocks run in float32, the tests in float64: their programs never share a key."""
     return Path(os.environ[SHARED_CACHE])
 
 

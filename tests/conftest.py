@@ -32,15 +32,15 @@ if os.environ.get("DIFFWASH_CACHE_DIR", os.environ.get(_OWN)) == os.environ.get(
     os.environ["DIFFWASH_CACHE_DIR"] = os.environ[_OWN] = tempfile.mkdtemp(prefix="diffwash-tests-jax-")
 
 # One folder for the test processes' own programs, made by the first (the controller) and inherited by the workers.
-_SHARED = SHARED_CACHE = "DIFFWASH_TESTS_SHARED_CACHE"
-_MADE_SHARED = not os.environ.get(_SHARED)  # the process that makes the folder removes it
+SHARED_CACHE = "DIFFWASH_TESTS_SHARED_CACHE"
+_MADE_SHARED = not os.environ.get(SHARED_CACHE)  # the process that makes the folder removes it
 if _MADE_SHARED:
-    os.environ[_SHARED] = tempfile.mkdtemp(prefix="diffwash-tests-xla-")
+    os.environ[SHARED_CACHE] = tempfile.mkdtemp(prefix="diffwash-tests-xla-")
 
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
-jax.config.update("jax_compilation_cache_dir", os.environ[_SHARED])
+jax.config.update("jax_compilation_cache_dir", os.environ[SHARED_CACHE])
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
 jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 jax.config.update("jax_compilation_cache_max_size", 8 << 30)  # a bound turns on the cross-process lock
@@ -64,7 +64,7 @@ def pytest_unconfigure(config):
     if os.environ.get("DIFFWASH_CACHE_DIR") == os.environ.get(_OWN):
         shutil.rmtree(os.environ[_OWN], ignore_errors=True)
     if _MADE_SHARED:
-        shutil.rmtree(os.environ[_SHARED], ignore_errors=True)
+        shutil.rmtree(os.environ[SHARED_CACHE], ignore_errors=True)
 
 
 #: Modules whose tests take longest (`--durations=0` of a whole run, 2026-11-28: the doc examples 512 s of the two

@@ -1,7 +1,8 @@
-"""`diffwash demo`, the README's main job: runs cold within 60 s and its fits find what the data hide."""
+"""`diffwash demo`, the README's main job: runs cold and its fits find what the data hide. Its cold time (budget
+60 s) is measured by `benchmarks/bench_notebooks.py`, not held here: a wall time held by a test fails on a slower
+machine though nothing changed."""
 
 import json
-import time
 
 import numpy as np
 from PIL import Image
@@ -11,11 +12,8 @@ from diffwash import colorimetry, km
 
 def test_demo_end_to_end_cold(run_cli, tmp_path):
     cache = tmp_path / "fresh-jax-cache"  # a first run on a new machine: nothing compiled yet
-    start = time.perf_counter()
     r = run_cli("demo", "-o", "out", env={"DIFFWASH_CACHE_DIR": str(cache)})
-    elapsed = time.perf_counter() - start
     assert r.returncode == 0, r.stderr
-    assert elapsed < 60, f"demo took {elapsed:.0f} s cold"
     out = tmp_path / "out"
 
     # Progress, then what was written and where to look.

@@ -2,8 +2,8 @@
 
 Each test process (each pytest-xdist worker) gives the `diffwash` commands its tests run as subprocesses a
 folder of its own for JAX's compiled programs (one worker runs one test at a time, so no two processes write
-it at once); it is removed when the process's test session ends. Tests that time a first run (the demo's)
-or state what a cold start costs (the notebooks) pass their own `DIFFWASH_CACHE_DIR`. The documents' code
+it at once); it is removed when the process's test session ends. Tests of a first run (the demo's, in a new
+folder) and the notebooks (the cache off, as a cold start) pass their own `DIFFWASH_CACHE_DIR`. The documents' code
 examples (tests/test_doc_examples.py) use the shared folder below instead, under its lock, commands and Python
 blocks alike (in float32: their programs never share a key with the tests').
 

@@ -39,7 +39,7 @@ def test_the_structured_normal_equations_are_the_dense_ones():
         target = obs.lab(reflect(band0 + 0.3, shared0 * 2))
         prior = lambda s: 0.1 * (s - 1.0)  # noqa: E731
         pb = _seen._Problem(reflect, obs.lab, target, band0, 0.5, prior)
-        loss, normal = (lambda y: _seen._loss(pb, y)), (lambda y: _seen._normal_equations(pb, y))
+        loss, normal = (lambda y: _seen._linearised(pb, y, False)[1]), (lambda y: _seen._normal_equations(pb, y))
         y = (band0 + 0.1, shared0 - 0.05)
 
         def flat_residuals(theta):

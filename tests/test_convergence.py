@@ -117,3 +117,51 @@ def test_a_capped_solve_is_a_solve_of_that_many_steps_and_runs_the_bounds_compil
         # A cap the solve does not reach changes nothing.
         np.testing.assert_array_equal(solve(60, cap=60).value[0], full.value[0])
         assert solve(60, cap=60).result == full.result
+
+
+class _ArrowWithUnused(eqx.Module):
+    """`_Arrow` with two more shared parameters that its rows ignore, held only by a ridge centred at their start
+    (as a mixture fit's mixing weights and surface term are when the model leaves them out)."""
+
+    y: jax.Array
+
+    def __call__(self, p, args):
+        band, shared = p
+        rows, prior = _Arrow(self.y)((band, shared[:1]), args)
+        return rows, jnp.concatenate([prior, 0.1 * (shared[1:] - jnp.asarray([0.0, -3.0]))])
+
+
+def test_a_solve_of_the_active_shared_parameters_takes_the_full_solves_steps():
+    """`BandLevenbergMarquardt(active=...)` leaves out of its products the shared parameters the residuals depend on
+    only through a ridge centred where they start: the full step leaves them there, so the solve is the same
+    (float64, to rounding) and they do not move at all."""
+    with jax.enable_x64(True):
+        fn = _ArrowWithUnused(jnp.asarray(np.random.default_rng(0).uniform(1.0, 3.0, (3, 5))))
+        y0 = (jnp.full((3, 2), -2.0), jnp.asarray([0.3, 0.0, -3.0]))
+        solve = lambda active: optx.least_squares(  # noqa: E731
+            fn, _bandlsq.BandLevenbergMarquardt(rtol=1e-12, atol=1e-12, active=active), y0, max_steps=60, throw=False)
+        full, part = solve(None), solve((0,))
+        assert int(part.stats["num_steps"]) == int(full.stats["num_steps"]) > 3
+        for a, b in zip(part.value, full.value):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
+        np.testing.assert_array_equal(part.value[1][1:], y0[1][1:])
+        assert float(jnp.abs(part.value[1][0] - y0[1][0])) > 1e-3  # the active one moved
+        # ... and the products were formed for it alone
+        assert part.state.descent_state.Hg.shape == (1, 1) and full.state.descent_state.Hg.shape == (3, 3)
+
+
+def test_a_mixture_fits_active_shared_parameters_are_the_ones_its_model_uses():
+    """`_SpectralResiduals.shared_active`: the amount laws, weights and surface term only when fitted; the weakly
+    measured pigments' levels always (`_mixfit._shared`'s layout: P exponents, P weights, k2, the levels)."""
+    from diffwash.fit.tables import _mixfit, _priors
+
+    P = 3
+    priors = _priors.TablePriors(scatter_weak=(0, 2), log_amount=(0.0, 0.0, 0.0))
+
+    def active(**model):
+        reflect = _mixfit._Reflect(jnp.zeros((1, 1, P)), jnp.zeros((1, 4)), P, _mixfit.MixModel(**model))
+        return _mixfit._SpectralResiduals(reflect, jnp.zeros((1, 4)), jnp.zeros((4, 2 * P)), priors).shared_active
+
+    assert active() == (0, 1, 2, 7, 8)
+    assert active(gamma=False) == (7, 8)
+    assert active(weights=True, surface=True) == (0, 1, 2, 3, 4, 5, 6, 7, 8)

@@ -218,6 +218,18 @@ class PairTerms(eqx.Module):
                          centres=self.centres, width=self.width, wavelengths=self.wavelengths,
                          inferred=tuple(pair(q) for q in keep if tuple(self.members[q]) in inferred))  # fmt: skip
 
+    def canonical(self) -> PairTerms:
+        """The same terms with the pairs in sorted order and no `inferred` marks: what a layer's colour depends on,
+        and nothing else. `members` and `inferred` are static (part of a compiled program's key): palettes whose
+        pairs were fitted and inferred in other orders (a fit's cross-validation folds, each holding out other
+        pairs) then share one compiled prediction."""
+        order = sorted(range(len(self.members)), key=lambda q: tuple(self.members[q]))
+        k = np.asarray(order, int)
+        return PairTerms(members=tuple(tuple(int(x) for x in self.members[q]) for q in order),
+                         k_bumps=jnp.asarray(self.k_bumps)[k], s_bumps=jnp.asarray(self.s_bumps)[k],
+                         k_amount=jnp.asarray(self.k_amount)[k], s_amount=jnp.asarray(self.s_amount)[k],
+                         centres=self.centres, width=self.width, wavelengths=self.wavelengths)  # fmt: skip
+
     def to_dict(self, names: tuple[str, ...]) -> dict[str, Any]:
         f = lambda x: np.asarray(x, np.float64).tolist()  # noqa: E731
         inferred = set(self.inferred)

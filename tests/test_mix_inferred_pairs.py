@@ -4,6 +4,7 @@ the fit's leave-pairs-out folds that calibrate the unseen pairs' 90% regions."""
 
 import json
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -226,3 +227,23 @@ def _drop_inferred(terms):
                                           terms.s_amount[k, None]], axis=1),
                          tuple(terms.members[q] for q in keep), terms.k_bumps.shape[1], terms.centres, terms.width,
                          terms.wavelengths)  # fmt: skip
+
+
+def test_canonical_pair_terms_predict_the_same_colours_and_key_one_compiled_prediction():
+    """`PairTerms.canonical`: the pairs sorted, no `inferred` marks (static fields, so part of a compiled program's
+    key): every layer's reflectance is unchanged, and two folds' terms (other pairs inferred, in other orders)
+    become one structure, so the folds share one compiled prediction (`_mixfit._fold_lab_with_pairs`)."""
+    import dataclasses
+
+    theta = np.random.default_rng(5).normal(0, 0.3, (3, 10))
+    one = dataclasses.replace(_terms(theta, ((1, 2), (0, 1), (0, 2))), inferred=((0, 2),))
+    other = dataclasses.replace(_terms(theta[[1, 2, 0]], ((0, 1), (0, 2), (1, 2))), inferred=((1, 2),))
+    assert one.canonical().members == ((0, 1), (0, 2), (1, 2)) and one.canonical().inferred == ()
+    assert jax.tree_util.tree_structure(one.canonical()) == jax.tree_util.tree_structure(other.canonical())
+    assert jax.tree_util.tree_structure(one) != jax.tree_util.tree_structure(other)
+    pal = _palette()
+    amounts = jnp.asarray(np.random.default_rng(6).uniform(0, 0.1, (20, 3)) * (np.arange(20) % 4 > 0)[:, None])
+    paper = jnp.full(len(GRID), 0.85)
+    for t in (one, other):
+        np.testing.assert_allclose(eqx_replace(pal, t.canonical()).reflectance(amounts, paper),
+                                   eqx_replace(pal, t).reflectance(amounts, paper), rtol=1e-12, atol=1e-14)

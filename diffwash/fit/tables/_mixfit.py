@@ -740,10 +740,12 @@ def _fold_lab_with_pairs(m: Measurements, names, model: MixModel, obs, grounds: 
     terms, _ = _pairs.fit_pair_terms(palette, rows.A1, rows.G1, rows.lab1, obs.lab, k2, ridge=model.pair_ridge,
                                      use=~np.asarray(test)[rows.one])  # fmt: skip
     inferred = _pairs.infer_pair_terms(terms, pigments=(palette.K, palette.S))
-    palette = eqx.tree_at(lambda p: p.pairs, palette, inferred, is_leaf=lambda x: x is None)
-    held = m.select(np.asarray(test))
+    # Every fold predicts every row of the table, its pairs in one order (`PairTerms.canonical`): the folds share
+    # one compiled prediction (each fold's held-out rows, and its measured and inferred pairs, differ).
+    palette = eqx.tree_at(lambda p: p.pairs, palette, inferred if inferred is None else inferred.canonical(),
+                          is_leaf=lambda x: x is None)  # fmt: skip
     lib = Library(palette=palette, grounds=dict(grounds), observation=obs, k2=float(k2))
-    return np.asarray(lib.predict(held).lab, np.float64)  # its rows with their layers
+    return np.asarray(lib.predict(m).lab, np.float64)[np.asarray(test)]  # its rows with their layers
 
 
 def _regions_of(m: Measurements, names, laplace, from_prior: dict, palette, k2: float, obs, lib: Library, rows,

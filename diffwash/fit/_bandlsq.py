@@ -130,40 +130,33 @@ class _State(eqx.Module):
     Hg: Float[Array, "g g"]
     gb: Float[Array, "b q"]
     gg: Float[Array, "g"]
-    shared: Float[Array, "s"]  # zeros shaped as every shared parameter (the step's `active` ones are `g`)
 
 
-def _tangents(band: Array, shared: Array, active: tuple[int, ...] | None = None) -> tuple[Array, Array]:
-    """Q + G tangents: unit per-band parameter q in every band at once, then each shared one (`active`: only
-    those shared parameters, in that order; None: all)."""
+def _tangents(band: Array, shared: Array) -> tuple[Array, Array]:
+    """Q + G tangents: unit per-band parameter q in every band at once, then each shared one."""
     B, Q = band.shape
     G = shared.shape[0]
     eye_q = jnp.eye(Q, dtype=band.dtype)
-    eye_g = jnp.eye(G, dtype=shared.dtype) if active is None else jnp.asarray(np.eye(G)[list(active)], shared.dtype)
-    Ga = eye_g.shape[0]
-    tb = jnp.concatenate([jnp.broadcast_to(eye_q[:, None, :], (Q, B, Q)), jnp.zeros((Ga, B, Q), band.dtype)])
-    tg = jnp.concatenate([jnp.zeros((Q, G), shared.dtype), eye_g])
+    tb = jnp.concatenate([jnp.broadcast_to(eye_q[:, None, :], (Q, B, Q)), jnp.zeros((G, B, Q), band.dtype)])
+    tg = jnp.concatenate([jnp.zeros((Q, G), shared.dtype), jnp.eye(G, dtype=shared.dtype)])
     return tb, tg
 
 
 class _BandDampedNewtonDescent(optx.AbstractDescent):
-    """The damped Newton step of an arrow-shaped (band-separable) least-squares problem; `active`: the shared
-    parameters it moves (the others stay where they are: parameters the residuals do not depend on but through a
-    prior centred where they start), None: all."""
-
-    active: tuple[int, ...] | None = eqx.field(static=True, default=None)
+    """The damped Newton step of an arrow-shaped (band-separable) least-squares problem."""
 
     def init(self, y: PyTree, f_info_struct: PyTree) -> _State:
         band, shared = y
         B, Q = band.shape
-        G = shared.shape[0] if self.active is None else len(self.active)
+        G = shared.shape[0]
         z = lambda *s: jnp.zeros(s, band.dtype)  # noqa: E731
-        return _State(Hb=z(B, Q, Q), Hbg=z(B, Q, G), Hg=z(G, G), gb=z(B, Q), gg=z(G), shared=jnp.zeros_like(shared))
+        return _State(Hb=z(B, Q, Q), Hbg=z(B, Q, G), Hg=z(G, G), gb=z(B, Q), gg=z(G))
 
     def query(self, y: PyTree, f_info: optx.FunctionInfo.ResidualJac, state: _State) -> _State:
+        del state
         band, shared = y
         Q = band.shape[1]
-        J_rows, J_shared = jax.vmap(f_info.jac.mv)(_tangents(band, shared, self.active))  # (Q+G, B, M), (Q+G, H)
+        J_rows, J_shared = jax.vmap(f_info.jac.mv)(_tangents(band, shared))  # (Q+G, B, M), (Q+G, H)
         r_rows, r_shared = f_info.residual
         Jb, Jgb = J_rows[:Q], J_rows[Q:]  # (Q, B, M), (G, B, M)
         Jg = J_shared[Q:]  # (G, H); the per-band seeds leave the shared residuals alone
@@ -172,7 +165,7 @@ class _BandDampedNewtonDescent(optx.AbstractDescent):
         Hg = jnp.einsum("gbm,hbm->gh", Jgb, Jgb) + Jg @ Jg.T
         gb = jnp.einsum("qbm,bm->bq", Jb, r_rows)
         gg = jnp.einsum("gbm,bm->g", Jgb, r_rows) + Jg @ r_shared
-        return _State(Hb=Hb, Hbg=Hbg, Hg=Hg, gb=gb, gg=gg, shared=state.shared)
+        return _State(Hb=Hb, Hbg=Hbg, Hg=Hg, gb=gb, gg=gg)
 
     def step(self, step_size: Scalar, state: _State) -> tuple[PyTree, optx.RESULTS]:
         dtype = state.gb.dtype
@@ -194,7 +187,6 @@ class _BandDampedNewtonDescent(optx.AbstractDescent):
         db = xb - jnp.einsum("bqg,g->bq", Xg, dg)
         finite = jnp.all(jnp.isfinite(db)) & jnp.all(jnp.isfinite(dg))
         result = optx.RESULTS.where(finite, optx.RESULTS.successful, optx.RESULTS.nonlinear_divergence)
-        dg = dg if self.active is None else state.shared.at[np.asarray(self.active, int)].set(dg)
         return (-jnp.where(finite, db, 0), -jnp.where(finite, dg, 0)), result
 
 
@@ -209,11 +201,6 @@ class BandLevenbergMarquardt(optx.AbstractGaussNewton):
       `nonlinear_max_steps_reached`), but as an array: solves capped at other step counts under one `max_steps`
       share one compiled program (a fit's cross-validation folds, capped below the fit's own bound). Default:
       no cap but `max_steps`.
-    - `active`: the shared parameters the solver moves, by index (None: all). A shared parameter the residuals
-      depend on only through a prior centred where it starts (a mixing weight or surface term the model does not
-      use) has no gradient there and a curvature coupled to nothing: the full step leaves it where it is, and
-      leaving it out of the Jacobian's products and of the Schur complement gives the same step for less work
-      (a third of an 80-row, 40-paint table's step: 41 of its 121 shared parameters).
     """
 
     rtol: float
@@ -225,11 +212,11 @@ class BandLevenbergMarquardt(optx.AbstractGaussNewton):
     cap: Array
 
     def __init__(self, rtol: float, atol: float, norm: Callable[[PyTree], Scalar] = optx.max_norm,
-                 cap: int | None = None, active: tuple[int, ...] | None = None):  # fmt: skip
+                 cap: int | None = None):  # fmt: skip
         self.rtol = rtol
         self.atol = atol
         self.norm = norm
-        self.descent = _BandDampedNewtonDescent(None if active is None else tuple(int(i) for i in active))
+        self.descent = _BandDampedNewtonDescent()
         self.search = optx.ClassicalTrustRegion()
         self.verbose = _quiet
         self.cap = jnp.asarray(np.iinfo(np.int32).max if cap is None else cap, jnp.int32)

@@ -344,16 +344,6 @@ class _SpectralResiduals(eqx.Module):
                                     pop, weak], axis=1)  # fmt: skip
         return per_band, _shared_prior(shared, P, model, self.priors)
 
-    @property
-    def shared_active(self) -> tuple[int, ...]:
-        """The shared parameters the residuals depend on other than through `_shared_prior`'s ridge (which is
-        centred where `_shared_start` puts them): the amount laws if fitted, the mixing weights if fitted, the
-        surface term if fitted, and the weakly measured pigments' levels (`BandLevenbergMarquardt`'s `active`)."""
-        P, model = self.reflect.P, self.reflect.model
-        on = ([range(P)] if model.gamma else []) + ([range(P, 2 * P)] if model.weights else [])
-        on += [[2 * P]] if model.surface else []
-        return tuple(i for r in on for i in r) + tuple(range(2 * P + 1, 2 * P + 1 + len(self.priors.scatter_weak)))
-
 
 def _shared_start(band0, priors: _priors.TablePriors, P: int, model: MixModel):
     """The spectral stage's start of the shared terms: amount-law exponents 1 (a pigment measured at one amount:
@@ -385,7 +375,7 @@ def _fit_spectral(m: Measurements, names, model: MixModel, max_steps: int, rtol:
         y, ok, steps = _solve_in_chunks(fn, (band0, shared0), None, max_steps, rtol, judge=model.loss != "de2000")
         ok = dataclasses.replace(ok, stage="log-reflectance fit")
     else:
-        solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol, active=fn.shared_active)
+        solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
         sol = optx.least_squares(fn, solver, (band0, shared0), max_steps=max_steps, throw=False)
         y, steps = sol.value, int(sol.stats["num_steps"])
         ok = Convergence(converged=bool(sol.result == optx.RESULTS.successful), steps=steps, stage="log-reflectance fit")
@@ -557,7 +547,7 @@ def _solve_in_chunks(fn, y, args, max_steps: int, rtol: float, judge: bool = Tru
     Returns `(y, Convergence, steps)` (`judge` False: out of steps is not judged, for a stage whose result only
     starts the next).
     """
-    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol, active=getattr(fn, "shared_active", None))
+    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol)
     # The loss is read where each chunk ends (`_chunk_loss`); the first chunk, from the start, is never a plateau.
     prev, first, steps = float("inf"), float("inf"), 0
     decrease = lambda a, b: (a - b) / a if np.isfinite(a) else float("nan")  # noqa: E731

@@ -127,7 +127,7 @@ def refit_held_out(spectral, start, pb: _seen._Problem, folds: list[np.ndarray],
     predictions hold more than its pigments (pair terms, fitted to the fold's own rows). `bound`: the `max_steps` the
     fit's own log-reflectance solve was compiled with; folds capped at no more steps run under it, capped by the
     solver (`BandLevenbergMarquardt.cap`), and reuse its compiled program (one compilation fewer per fit)."""
-    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol, cap=steps, active=getattr(spectral, "shared_active", None))
+    solver = BandLevenbergMarquardt(rtol=rtol, atol=rtol, cap=steps)
     bound = max(bound, steps)
 
     def one(test):

@@ -2,6 +2,7 @@
 effects fitted to the measured pairs' terms, and what pairs of like paints did, marked in the library file, used by
 the fit's leave-pairs-out folds that calibrate the unseen pairs' 90% regions."""
 
+import dataclasses
 import json
 
 import jax
@@ -233,8 +234,6 @@ def test_canonical_pair_terms_predict_the_same_colours_and_key_one_compiled_pred
     """`PairTerms.canonical`: the pairs sorted, no `inferred` marks (static fields, so part of a compiled program's
     key): every layer's reflectance is unchanged, and two folds' terms (other pairs inferred, in other orders)
     become one structure, so the folds share one compiled prediction (`_mixfit._fold_lab_with_pairs`)."""
-    import dataclasses
-
     theta = np.random.default_rng(5).normal(0, 0.3, (3, 10))
     one = dataclasses.replace(_terms(theta, ((1, 2), (0, 1), (0, 2))), inferred=((0, 2),))
     other = dataclasses.replace(_terms(theta[[1, 2, 0]], ((0, 1), (0, 2), (1, 2))), inferred=((1, 2),))
@@ -247,3 +246,26 @@ def test_canonical_pair_terms_predict_the_same_colours_and_key_one_compiled_pred
     for t in (one, other):
         np.testing.assert_allclose(eqx_replace(pal, t.canonical()).reflectance(amounts, paper),
                                    eqx_replace(pal, t).reflectance(amounts, paper), rtol=1e-12, atol=1e-14)
+
+
+def test_every_leave_pairs_out_fold_predicts_through_the_same_program(monkeypatch):
+    """`_mixfit._fold_lab_with_pairs` predicts every row of the table with its pairs in one order: each fold's
+    prediction has the same pytree structure and shapes (one compiled `_forward` for all folds; before, each fold
+    predicted its own held-out rows with its pairs in the order it fitted and inferred them, and compiled again),
+    and it returns its own held-out rows."""
+    m = measurements.read_measurements(NTU)
+    m = m.select([set(p) <= {"P1", "P4", "P7", "P12"} for p in m.pigments])
+    names, obs = m.names, m.observation()
+    P, B = len(names), len(obs.wavelengths)
+    rng = np.random.default_rng(0)
+    params = (rng.uniform(0.2, 3, (P, B)), rng.uniform(0.3, 2, (P, B)), np.full(P, 0.7), np.ones(P), 0.0)
+    rows = _mixfit._PairRows.of(m, names, dict(m.grounds), obs)
+    seen = []
+    predict = library.Library.predict
+    monkeypatch.setattr(library.Library, "predict", lambda self, q, *a: seen.append(
+        (jax.tree_util.tree_structure(self.palette), len(q))) or predict(self, q, *a))
+    folds = [t for _, t in _mixfit.pair_folds(m)]
+    model = MixModel(pair_ridge=_pairs.PAIR_RIDGE)
+    held = [_mixfit._fold_lab_with_pairs(m, names, model, obs, dict(m.grounds), rows, params, t) for t in folds[:2]]
+    assert [h.shape for h in held] == [(int(t.sum()), 3) for t in folds[:2]]
+    assert seen[0] == seen[1] and seen[0][1] == len(m)

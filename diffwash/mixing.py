@@ -209,14 +209,10 @@ class PairTerms(eqx.Module):
         keep = [q for q, (i, j) in enumerate(self.members) if i in where and j in where]
         if not keep:
             return None
-        k = np.asarray(keep)
         pair = lambda q: tuple(sorted((where[self.members[q][0]], where[self.members[q][1]])))  # noqa: E731
         inferred = set(self.inferred)
-        return PairTerms(members=tuple(pair(q) for q in keep),
-                         k_bumps=jnp.asarray(self.k_bumps)[k], s_bumps=jnp.asarray(self.s_bumps)[k],
-                         k_amount=jnp.asarray(self.k_amount)[k], s_amount=jnp.asarray(self.s_amount)[k],
-                         centres=self.centres, width=self.width, wavelengths=self.wavelengths,
-                         inferred=tuple(pair(q) for q in keep if tuple(self.members[q]) in inferred))  # fmt: skip
+        return self._take(keep, tuple(pair(q) for q in keep),
+                          tuple(pair(q) for q in keep if tuple(self.members[q]) in inferred))
 
     def canonical(self) -> PairTerms:
         """The same terms with the pairs in sorted order and no `inferred` marks: what a layer's colour depends on,
@@ -224,11 +220,16 @@ class PairTerms(eqx.Module):
         pairs were fitted and inferred in other orders (a fit's cross-validation folds, each holding out other
         pairs) then share one compiled prediction."""
         order = sorted(range(len(self.members)), key=lambda q: tuple(self.members[q]))
-        k = np.asarray(order, int)
-        return PairTerms(members=tuple(tuple(int(x) for x in self.members[q]) for q in order),
-                         k_bumps=jnp.asarray(self.k_bumps)[k], s_bumps=jnp.asarray(self.s_bumps)[k],
+        return self._take(order, tuple(tuple(int(x) for x in self.members[q]) for q in order), ())
+
+    def _take(self, rows: list[int], members: tuple[tuple[int, int], ...],
+              inferred: tuple[tuple[int, int], ...]) -> PairTerms:  # fmt: skip
+        """The terms of this object's pairs at positions `rows`, in that order, as pairs `members` (one per row)
+        marked `inferred` (`subset` and `canonical`)."""
+        k = np.asarray(rows, int)
+        return PairTerms(members=members, k_bumps=jnp.asarray(self.k_bumps)[k], s_bumps=jnp.asarray(self.s_bumps)[k],
                          k_amount=jnp.asarray(self.k_amount)[k], s_amount=jnp.asarray(self.s_amount)[k],
-                         centres=self.centres, width=self.width, wavelengths=self.wavelengths)  # fmt: skip
+                         centres=self.centres, width=self.width, wavelengths=self.wavelengths, inferred=inferred)
 
     def to_dict(self, names: tuple[str, ...]) -> dict[str, Any]:
         f = lambda x: np.asarray(x, np.float64).tolist()  # noqa: E731
